@@ -1,0 +1,356 @@
+//! Configuration: TOML files (`configs/*.toml`) parsed into serde structs with
+//! `deny_unknown_fields`, then validated into a [`Config`] before any work starts.
+//!
+//! Every quantity is in SI units (m, s, m/s, m/s^2). `configs/paper.toml` documents, value by
+//! value, which numbers come from the paper and which are our choice.
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// A configuration problem, naming the key at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("cannot read config {path}: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The TOML did not parse or did not match the schema (unknown key, wrong type).
+    #[error("config {path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// What the parser said, including the key and line.
+        message: String,
+    },
+    /// A value is out of range, not finite, or inconsistent with another.
+    #[error("config key `{key}`: {message}")]
+    Invalid {
+        /// Dotted key, for example `scenario.conflict_point`.
+        key: String,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// Road geometry of the forced merge (Section V).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioConfig {
+    /// Longitudinal position of the merging conflict point `x_c` (m).
+    pub conflict_point: f64,
+    /// Length of the simulated road; positions beyond it are still simulated (m).
+    pub road_length: f64,
+    /// Lane width (m); the ramp centre line is one lane width to the right of the target lane.
+    pub lane_width: f64,
+    /// Number of target-lane players ahead of the ego by distance to the conflict point.
+    pub n_leaders: usize,
+    /// Number of target-lane players behind the ego by distance to the conflict point.
+    pub n_followers: usize,
+}
+
+/// Vehicle body and kinematic-bicycle parameters (eq. 1).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct VehicleConfig {
+    /// Bounding-box length (m).
+    pub length: f64,
+    /// Bounding-box width (m).
+    pub width: f64,
+    /// Distance from the centre of mass to the front axle `l_f` (m).
+    pub l_f: f64,
+    /// Distance from the centre of mass to the rear axle `l_r` (m).
+    pub l_r: f64,
+    /// Lowest speed (m/s).
+    pub v_min: f64,
+    /// Highest speed (m/s).
+    pub v_max: f64,
+    /// Action bound `g`: accelerations lie in `[-g, g]` (m/s^2).
+    pub max_accel: f64,
+}
+
+/// Time discretisation and the episode rules.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    /// Time step `Delta t` (s).
+    pub dt: f64,
+    /// Episode horizon `T` (s).
+    pub horizon: f64,
+    /// Discount factor per step.
+    pub gamma: f64,
+    /// Project target-lane actions onto the TTC-feasible interval (Section V-ii).
+    pub feasibility: bool,
+    /// TTC safety threshold `tau_s` of the feasibility projection (s).
+    pub tau_s: f64,
+    /// End the episode for everyone at the first collision.
+    pub terminate_on_collision: bool,
+}
+
+/// Reward terms of Section V-iii and their weights.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RewardConfig {
+    /// Desired speed `v_d` of the speed-tracking term (m/s).
+    pub v_desired: f64,
+    /// Relative-speed threshold `v_c` of the same-lane TTC term (m/s).
+    pub v_c: f64,
+    /// `epsilon` guarding the denominators (and the arrival-time divisions).
+    pub epsilon: f64,
+    /// Weight `omega_11` of speed tracking `-(v - v_d)^2`.
+    pub w_speed: f64,
+    /// Weight `omega_12` of comfort `-u^2`.
+    pub w_comfort: f64,
+    /// Weight `omega_21` of the same-lane pairwise TTC term.
+    pub w_ttc: f64,
+    /// Weight `omega_22` of the different-lane time-gap-to-conflict-point term (eq. 28).
+    pub w_conflict: f64,
+}
+
+/// Intelligent Driver Model parameters (Treiber, Hennecke and Helbing 2000).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct IdmConfig {
+    /// Desired speed `v0` (m/s).
+    pub v0: f64,
+    /// Safe time headway `T` (s).
+    pub time_headway: f64,
+    /// Minimum standstill gap `s0` (m).
+    pub min_gap: f64,
+    /// Maximum acceleration `a` (m/s^2).
+    pub accel: f64,
+    /// Comfortable deceleration `b` (m/s^2).
+    pub decel: f64,
+    /// Acceleration exponent `delta` (a multiple of 0.5).
+    pub delta: f64,
+}
+
+/// Stratified initial-state sampling (Section V-iv).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SamplingConfig {
+    /// Range of the ego's initial longitudinal position `[min, max]` (m).
+    pub ego_position: [f64; 2],
+    /// Range of the ego's initial speed (m/s).
+    pub ego_speed: [f64; 2],
+    /// Range of the target-lane players' initial speeds (m/s).
+    pub speed: [f64; 2],
+    /// Range of the centre-to-centre headway between successive vehicles (m).
+    pub headway: [f64; 2],
+    /// Lowest initial TTC between every successive leader and follower (s).
+    pub min_ttc: f64,
+    /// Strata over (ego position, ego speed): scenario `k` is drawn in stratum `k mod (n_p * n_v)`.
+    pub strata: [usize; 2],
+}
+
+/// Evaluation settings shared by later commands.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EvalConfig {
+    /// Training/evaluation seeds (one policy per seed).
+    pub seeds: Vec<u64>,
+    /// Number of test scenarios per seed.
+    pub test_scenarios: usize,
+}
+
+/// The whole configuration (one TOML file).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Seed of every random stream not given on the command line.
+    pub seed: u64,
+    /// Road geometry.
+    pub scenario: ScenarioConfig,
+    /// Vehicles.
+    pub vehicle: VehicleConfig,
+    /// Simulation.
+    pub sim: SimConfig,
+    /// Rewards.
+    pub reward: RewardConfig,
+    /// IDM drivers.
+    pub idm: IdmConfig,
+    /// Initial states.
+    pub sampling: SamplingConfig,
+    /// Evaluation.
+    pub eval: EvalConfig,
+}
+
+impl Config {
+    /// Reads, parses and validates a TOML configuration file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Parses and validates TOML text; `origin` names it in messages.
+    pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        let config: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: origin.to_string(),
+            message: e.to_string().trim_end().replace('\n', " "),
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Total number of players `N` (ego, leaders and followers).
+    pub fn n_agents(&self) -> usize {
+        1 + self.scenario.n_leaders + self.scenario.n_followers
+    }
+
+    /// Number of simulation steps in an episode, `round(T / dt)`.
+    pub fn n_steps(&self) -> usize {
+        (self.sim.horizon / self.sim.dt).round() as usize
+    }
+
+    /// Checks ranges and consistency; the first problem found is returned.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let s = &self.scenario;
+        let v = &self.vehicle;
+        let m = &self.sim;
+        let r = &self.reward;
+        let i = &self.idm;
+        let p = &self.sampling;
+        positive("scenario.road_length", s.road_length)?;
+        positive("scenario.lane_width", s.lane_width)?;
+        finite("scenario.conflict_point", s.conflict_point)?;
+        check(
+            "scenario.conflict_point",
+            s.conflict_point > 0.0 && s.conflict_point < s.road_length,
+            format!(
+                "{} must lie inside the road (0, {})",
+                s.conflict_point, s.road_length
+            ),
+        )?;
+        check(
+            "scenario.n_leaders",
+            s.n_leaders <= 16,
+            "must be at most 16".into(),
+        )?;
+        check(
+            "scenario.n_followers",
+            s.n_followers <= 16,
+            "must be at most 16".into(),
+        )?;
+        positive("vehicle.length", v.length)?;
+        positive("vehicle.width", v.width)?;
+        check(
+            "vehicle.width",
+            v.width < s.lane_width,
+            format!("{} must be narrower than the lane ({})", v.width, s.lane_width),
+        )?;
+        positive("vehicle.l_f", v.l_f)?;
+        positive("vehicle.l_r", v.l_r)?;
+        non_negative("vehicle.v_min", v.v_min)?;
+        positive("vehicle.v_max", v.v_max)?;
+        check(
+            "vehicle.v_max",
+            v.v_max > v.v_min,
+            format!("{} must exceed vehicle.v_min ({})", v.v_max, v.v_min),
+        )?;
+        positive("vehicle.max_accel", v.max_accel)?;
+        positive("sim.dt", m.dt)?;
+        positive("sim.horizon", m.horizon)?;
+        check(
+            "sim.horizon",
+            m.horizon >= m.dt,
+            format!("{} must be at least one step (sim.dt = {})", m.horizon, m.dt),
+        )?;
+        finite("sim.gamma", m.gamma)?;
+        check(
+            "sim.gamma",
+            m.gamma > 0.0 && m.gamma <= 1.0,
+            "must lie in (0, 1]".into(),
+        )?;
+        positive("sim.tau_s", m.tau_s)?;
+        non_negative("reward.v_desired", r.v_desired)?;
+        positive("reward.v_c", r.v_c)?;
+        positive("reward.epsilon", r.epsilon)?;
+        for (key, w) in [
+            ("reward.w_speed", r.w_speed),
+            ("reward.w_comfort", r.w_comfort),
+            ("reward.w_ttc", r.w_ttc),
+            ("reward.w_conflict", r.w_conflict),
+        ] {
+            non_negative(key, w)?;
+        }
+        positive("idm.v0", i.v0)?;
+        positive("idm.time_headway", i.time_headway)?;
+        non_negative("idm.min_gap", i.min_gap)?;
+        positive("idm.accel", i.accel)?;
+        positive("idm.decel", i.decel)?;
+        positive("idm.delta", i.delta)?;
+        check(
+            "idm.delta",
+            (i.delta * 2.0).fract() == 0.0 && i.delta <= 16.0,
+            format!("{} must be a multiple of 0.5 up to 16", i.delta),
+        )?;
+        range("sampling.ego_position", p.ego_position, 0.0, s.conflict_point)?;
+        range("sampling.ego_speed", p.ego_speed, v.v_min, v.v_max)?;
+        range("sampling.speed", p.speed, v.v_min, v.v_max)?;
+        range("sampling.headway", p.headway, v.length, f64::INFINITY)?;
+        positive("sampling.min_ttc", p.min_ttc)?;
+        check(
+            "sampling.strata",
+            p.strata[0] >= 1 && p.strata[1] >= 1,
+            "both counts must be at least 1".into(),
+        )?;
+        check(
+            "eval.seeds",
+            !self.eval.seeds.is_empty(),
+            "needs at least one seed".into(),
+        )?;
+        check(
+            "eval.test_scenarios",
+            self.eval.test_scenarios >= 1,
+            "must be at least 1".into(),
+        )?;
+        Ok(())
+    }
+}
+
+fn check(key: &str, ok: bool, message: String) -> Result<(), ConfigError> {
+    if ok {
+        Ok(())
+    } else {
+        Err(ConfigError::Invalid {
+            key: key.to_string(),
+            message,
+        })
+    }
+}
+
+fn finite(key: &str, x: f64) -> Result<(), ConfigError> {
+    check(key, x.is_finite(), format!("{x} is not a finite number"))
+}
+
+fn positive(key: &str, x: f64) -> Result<(), ConfigError> {
+    finite(key, x)?;
+    check(key, x > 0.0, format!("{x} must be positive"))
+}
+
+fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
+    finite(key, x)?;
+    check(key, x >= 0.0, format!("{x} must not be negative"))
+}
+
+/// `[min, max]` with `lo <= min <= max <= hi`, all finite.
+fn range(key: &str, r: [f64; 2], lo: f64, hi: f64) -> Result<(), ConfigError> {
+    finite(key, r[0])?;
+    finite(key, r[1])?;
+    check(
+        key,
+        r[0] <= r[1],
+        format!("minimum {} exceeds maximum {}", r[0], r[1]),
+    )?;
+    check(
+        key,
+        r[0] >= lo && r[1] <= hi,
+        format!("[{}, {}] must lie within [{lo}, {hi}]", r[0], r[1]),
+    )
+}

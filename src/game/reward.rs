@@ -1,0 +1,157 @@
+//! Per-agent rewards and the potential (Theorem 3).
+//!
+//! ```text
+//! r_i = w_speed s1_i + w_comfort s2_i + sum_{j != i} r_ij
+//! r_ij = w_ttc [same lane] ttc_ij + w_conflict [different lanes] gap_ij
+//! phi  = sum_i (w_speed s1_i + w_comfort s2_i) + sum_i sum_{j < i} r_ij
+//! ```
+//!
+//! Each term is also logged unweighted per agent ([`TermValues`]); pair terms are logged as the
+//! sum over the agent's partners.
+
+use crate::config::Config;
+use crate::game::terms;
+use crate::sim::state::Vehicle;
+
+/// Unweighted reward terms of one agent at one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TermValues {
+    /// `-(v - v_d)^2`.
+    pub speed: f64,
+    /// `-u^2`.
+    pub comfort: f64,
+    /// Sum over same-lane partners of the TTC term.
+    pub ttc: f64,
+    /// Sum over different-lane partners of the conflict time-gap term.
+    pub conflict: f64,
+}
+
+impl TermValues {
+    /// Names of the terms, in the order of [`TermValues::as_array`].
+    pub const NAMES: [&'static str; 4] = ["speed", "comfort", "ttc", "conflict"];
+
+    /// The terms as an array, in the order of [`TermValues::NAMES`].
+    pub fn as_array(&self) -> [f64; 4] {
+        [self.speed, self.comfort, self.ttc, self.conflict]
+    }
+}
+
+/// A pairwise reward `r_ij(s_i, s_j)`, weighted. `i` and `j` are player indices, so a test can
+/// build a deliberately asymmetric one.
+pub trait PairReward: Sync {
+    /// The weighted pair reward of `i` from its interaction with `j`, and its unweighted parts
+    /// `(ttc, conflict)` for logging.
+    fn pair(&self, i: usize, j: usize, a: &Vehicle, b: &Vehicle) -> (f64, f64, f64);
+
+    /// True when `r_ij = r_ji` for every pair, so each pair needs computing once.
+    fn is_symmetric(&self) -> bool;
+}
+
+/// The paper's reward (Section V-iii) with the configured weights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PaperReward {
+    /// Desired speed (m/s).
+    pub v_desired: f64,
+    /// `v_c` (m/s).
+    pub v_c: f64,
+    /// `epsilon`.
+    pub epsilon: f64,
+    /// Conflict point (m).
+    pub conflict_point: f64,
+    /// Weights `(w_speed, w_comfort, w_ttc, w_conflict)`.
+    pub weights: [f64; 4],
+}
+
+impl PaperReward {
+    /// The reward of a configuration.
+    pub fn new(config: &Config) -> Self {
+        let r = &config.reward;
+        PaperReward {
+            v_desired: r.v_desired,
+            v_c: r.v_c,
+            epsilon: r.epsilon,
+            conflict_point: config.scenario.conflict_point,
+            weights: [r.w_speed, r.w_comfort, r.w_ttc, r.w_conflict],
+        }
+    }
+
+    /// Unweighted self terms `(speed, comfort)` of a vehicle applying `u`.
+    pub fn self_terms(&self, v: &Vehicle, u: f64) -> (f64, f64) {
+        (terms::speed_tracking(&v.v, self.v_desired), terms::comfort(&u))
+    }
+}
+
+impl PairReward for PaperReward {
+    fn pair(&self, _i: usize, _j: usize, a: &Vehicle, b: &Vehicle) -> (f64, f64, f64) {
+        let [_, _, w_ttc, w_conflict] = self.weights;
+        if a.on_ramp == b.on_ramp {
+            let t = terms::same_lane_ttc(&a.x, &a.v, &b.x, &b.v, self.v_c, self.epsilon);
+            (w_ttc * t, t, 0.0)
+        } else {
+            let c = terms::conflict_time_gap(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
+            (w_conflict * c, 0.0, c)
+        }
+    }
+
+    fn is_symmetric(&self) -> bool {
+        true
+    }
+}
+
+/// Rewards of every agent at one step, and the potential.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StepRewards {
+    /// `r_i` per agent.
+    pub reward: Vec<f64>,
+    /// Unweighted terms per agent.
+    pub terms: Vec<TermValues>,
+    /// `phi(s, a)`.
+    pub potential: f64,
+}
+
+impl StepRewards {
+    /// Computes `r_i`, the terms and `phi` for vehicles applying `actions`, writing into `self`.
+    pub fn compute(
+        &mut self,
+        base: &PaperReward,
+        pair: &dyn PairReward,
+        vehicles: &[Vehicle],
+        actions: &[f64],
+    ) {
+        let n = vehicles.len();
+        let [w_speed, w_comfort, _, _] = base.weights;
+        self.reward.clear();
+        self.terms.clear();
+        self.potential = 0.0;
+        for (veh, &u) in vehicles.iter().zip(actions) {
+            let (speed, comfort) = base.self_terms(veh, u);
+            let r = w_speed * speed + w_comfort * comfort;
+            self.reward.push(r);
+            self.terms.push(TermValues {
+                speed,
+                comfort,
+                ttc: 0.0,
+                conflict: 0.0,
+            });
+            self.potential += r;
+        }
+        let symmetric = pair.is_symmetric();
+        for i in 0..n {
+            for j in 0..i {
+                let (r_ij, ttc_ij, conf_ij) = pair.pair(i, j, &vehicles[i], &vehicles[j]);
+                let (r_ji, ttc_ji, conf_ji) = if symmetric {
+                    (r_ij, ttc_ij, conf_ij)
+                } else {
+                    pair.pair(j, i, &vehicles[j], &vehicles[i])
+                };
+                self.reward[i] += r_ij;
+                self.reward[j] += r_ji;
+                self.terms[i].ttc += ttc_ij;
+                self.terms[i].conflict += conf_ij;
+                self.terms[j].ttc += ttc_ji;
+                self.terms[j].conflict += conf_ji;
+                self.potential += r_ij; // Theorem 3: pairs j < i, r_ij
+            }
+        }
+    }
+}

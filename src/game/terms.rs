@@ -1,0 +1,49 @@
+//! The four reward terms of Section V-iii, unweighted, over any [`Num`].
+//!
+//! Self terms depend on one vehicle; pair terms are symmetric in the two vehicles
+//! (`r_ij = r_ji`), which Theorem 2 needs.
+
+use crate::num::Num;
+
+/// Speed tracking, `-(v - v_d)^2`.
+pub fn speed_tracking<T: Num>(v: &T, v_desired: f64) -> T {
+    v.add_c(-v_desired).square().neg()
+}
+
+/// Ride comfort, `-u^2`.
+pub fn comfort<T: Num>(u: &T) -> T {
+    u.square().neg()
+}
+
+/// Same-lane pairwise TTC term (the paper's piecewise equation):
+///
+/// ```text
+/// -1 / (|x_i - x_j| / v_c + eps)     if |v_i - v_j| <= v_c
+/// -1 / (TTC_ij + eps)                otherwise, TTC_ij = |x_i - x_j| / |v_i - v_j|
+/// ```
+///
+/// Both branches are `-1 / (|dx| / max(|dv|, v_c) + eps)`, which is how it is computed (one
+/// expression, continuous at `|dv| = v_c`, and with finite gradients everywhere).
+pub fn same_lane_ttc<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, v_c: f64, eps: f64) -> T {
+    let dx = x_i.sub(x_j).abs();
+    let dv = v_i.sub(v_j).abs().max(&x_i.full(v_c));
+    dx.div(&dv).add_c(eps).recip().neg()
+}
+
+/// Time for a vehicle to reach the conflict point, `T_i = |x_i - x_c| / (v_i + eps)`.
+pub fn time_to_conflict<T: Num>(x: &T, v: &T, x_c: f64, eps: f64) -> T {
+    x.add_c(-x_c).abs().div(&v.add_c(eps))
+}
+
+/// Different-lane time-gap-to-conflict-point term, eq. (28):
+/// `-1 / (sqrt(T_i T_j) (T_i - T_j)^2 + eps)`.
+pub fn conflict_time_gap<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
+    let t_i = time_to_conflict(x_i, v_i, x_c, eps);
+    let t_j = time_to_conflict(x_j, v_j, x_c, eps);
+    t_i.mul(&t_j)
+        .sqrt()
+        .mul(&t_i.sub(&t_j).square())
+        .add_c(eps)
+        .recip()
+        .neg()
+}

@@ -1,0 +1,187 @@
+//! Local observation of each player (Table I), one builder for every kind of traffic
+//! (internal simulator, NGSIM replay, SUMO co-simulation).
+//!
+//! | index | feature | definition |
+//! |---|---|---|
+//! | 0 | position | `x_c - x` (m), signed distance to the conflict point |
+//! | 1 | speed | `v` (m/s) |
+//! | 2 | leader distance | `x_L - x` (m), nearest player ahead in any lane |
+//! | 3 | leader relative speed | `v_L - v` (m/s) |
+//! | 4 | leader flag | 1 when there is a leader |
+//! | 5 | follower distance | `x - x_F` (m), nearest player behind in any lane |
+//! | 6 | follower relative speed | `v_F - v` (m/s) |
+//! | 7 | follower flag | 1 when there is a follower |
+//! | 8 | lane flag | 1 on the ramp, 0 in the target lane |
+//! | 9.. | agent index | one-hot over the `N` players |
+//!
+//! A missing neighbour reads as [`MISSING_DISTANCE`] away with zero relative speed, and its
+//! flag is 0. Values are raw SI numbers here; the policy network normalises them.
+
+use crate::config::Config;
+use crate::num::Num;
+use crate::sim::neighbors::Neighbors;
+use crate::sim::rollout::{Actor, Driver, driver_accel, neighbor_of};
+use crate::sim::safety::Neighbor;
+use crate::sim::state::Scene;
+
+/// Observation layout version, stored with policy files.
+pub const OBS_LAYOUT_VERSION: u32 = 1;
+/// Number of features before the one-hot agent index.
+pub const N_FEATURES: usize = 9;
+/// Distance reported for a missing neighbour (m).
+pub const MISSING_DISTANCE: f64 = 100.0;
+
+/// Observation width for `n_agents` players.
+pub fn obs_dim(n_agents: usize) -> usize {
+    N_FEATURES + n_agents
+}
+
+/// The nine Table I features of a player at `(x, v)`, over any [`Num`].
+pub fn features<T: Num>(
+    x_c: f64,
+    x: &T,
+    v: &T,
+    on_ramp: &T,
+    leader: &Neighbor<T>,
+    follower: &Neighbor<T>,
+) -> [T; N_FEATURES] {
+    let missing = x.full(MISSING_DISTANCE);
+    let zero = x.full(0.0);
+    [
+        x.mul_c(-1.0).add_c(x_c),
+        v.mul_c(1.0),
+        T::select(&leader.present, &leader.x.sub(x), &missing),
+        T::select(&leader.present, &leader.v.sub(v), &zero),
+        leader.present.mul_c(1.0),
+        T::select(&follower.present, &x.sub(&follower.x), &missing),
+        T::select(&follower.present, &follower.v.sub(v), &zero),
+        follower.present.mul_c(1.0),
+        on_ramp.mul_c(1.0),
+    ]
+}
+
+/// Writes the observation of player `i` of `scene` into `out` (length [`obs_dim`]).
+pub fn observe(x_c: f64, scene: &Scene, i: usize, nb: &Neighbors, out: &mut [f32]) {
+    let me = &scene.vehicles[i];
+    let f = features(
+        x_c,
+        &me.x,
+        &me.v,
+        &if me.on_ramp { 1.0 } else { 0.0 },
+        &neighbor_of(scene, nb.leader, me),
+        &neighbor_of(scene, nb.follower, me),
+    );
+    for (o, v) in out.iter_mut().zip(f) {
+        *o = v as f32;
+    }
+    for (k, o) in out[N_FEATURES..].iter_mut().enumerate() {
+        *o = if k == i { 1.0 } else { 0.0 };
+    }
+}
+
+/// A policy evaluated on many observations at once (one row per controlled player).
+pub trait BatchPolicy: Send {
+    /// Writes one action (m/s^2) per row of `obs` (`rows x obs_dim`, row-major) into `out`.
+    fn act(&mut self, obs: &[f32], rows: usize, out: &mut [f32]);
+}
+
+/// `u = g tanh(w . o + b)`: a fixed linear policy, used as a stand-in for a trained network
+/// (demo, benchmarks).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearPolicy {
+    /// Weights, one per observation entry.
+    pub weights: Vec<f32>,
+    /// Bias.
+    pub bias: f32,
+    /// Action scale `g` (m/s^2).
+    pub scale: f32,
+}
+
+impl LinearPolicy {
+    /// Tracks `v_desired` and backs off from a close leader:
+    /// `u = g tanh(0.1 (v_d - v) + 0.05 (d_L - 20) + 0.2 dv_L)` (d_L capped by the missing
+    /// distance).
+    pub fn speed_keeping(config: &Config) -> Self {
+        let mut weights = vec![0.0; obs_dim(config.n_agents())];
+        weights[1] = -0.1;
+        weights[2] = 0.05;
+        weights[3] = 0.2;
+        LinearPolicy {
+            weights,
+            bias: (0.1 * config.reward.v_desired - 0.05 * 20.0) as f32,
+            scale: config.vehicle.max_accel as f32,
+        }
+    }
+}
+
+impl BatchPolicy for LinearPolicy {
+    fn act(&mut self, obs: &[f32], rows: usize, out: &mut [f32]) {
+        let dim = self.weights.len();
+        for (r, o) in out.iter_mut().enumerate().take(rows) {
+            let row = &obs[r * dim..(r + 1) * dim];
+            let z: f32 = row.iter().zip(&self.weights).map(|(a, b)| a * b).sum::<f32>() + self.bias;
+            *o = self.scale * z.tanh();
+        }
+    }
+}
+
+/// The ego (and optionally every player) driven by a batched policy, the rest by a
+/// non-learning driver.
+pub struct PolicyActor<P: BatchPolicy> {
+    policy: P,
+    config: Config,
+    /// Driver of the players the policy does not drive.
+    pub others: Driver,
+    /// True: the policy drives every player (parameter sharing); false: the ego only.
+    pub all_players: bool,
+    obs: Vec<f32>,
+    act: Vec<f32>,
+}
+
+impl<P: BatchPolicy> PolicyActor<P> {
+    /// A policy actor.
+    pub fn new(config: &Config, policy: P, others: Driver, all_players: bool) -> Self {
+        PolicyActor {
+            policy,
+            config: config.clone(),
+            others,
+            all_players,
+            obs: Vec::new(),
+            act: Vec::new(),
+        }
+    }
+}
+
+impl<P: BatchPolicy> Actor for PolicyActor<P> {
+    fn act(&mut self, _step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]) {
+        let n = self.config.n_agents();
+        let dim = obs_dim(n);
+        let per_scene = if self.all_players { n } else { 1 };
+        let rows = scenes.len() * per_scene;
+        self.obs.resize(rows * dim, 0.0);
+        self.act.resize(rows, 0.0);
+        let x_c = self.config.scenario.conflict_point;
+        for (b, scene) in scenes.iter().enumerate() {
+            for i in 0..per_scene {
+                let row = b * per_scene + i;
+                observe(
+                    x_c,
+                    scene,
+                    i,
+                    &neighbors[b * n + i],
+                    &mut self.obs[row * dim..(row + 1) * dim],
+                );
+            }
+        }
+        self.policy.act(&self.obs, rows, &mut self.act);
+        for (b, scene) in scenes.iter().enumerate() {
+            for i in 0..n {
+                out[b * n + i] = if i < per_scene {
+                    f64::from(self.act[b * per_scene + i])
+                } else {
+                    driver_accel(&self.config, self.others, scene, i, &neighbors[b * n + i])
+                };
+            }
+        }
+    }
+}

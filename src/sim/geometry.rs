@@ -1,0 +1,76 @@
+//! Road geometry and vehicle bounding boxes.
+//!
+//! The target lane's centre line is `y = 0`; the ramp's is one lane width to its right
+//! (`y = -lane_width`). The ramp joins the target lane at the conflict point `x_c`: a ramp
+//! vehicle is moved onto the target-lane centre line when its `x` reaches `x_c` (longitudinal
+//! control, the lane geometry gives the lateral position).
+
+use crate::config::Config;
+use nalgebra::{Rotation2, Vector2};
+
+/// The merge road.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Road {
+    /// Conflict point `x_c` (m).
+    pub conflict_point: f64,
+    /// Lane width (m).
+    pub lane_width: f64,
+}
+
+impl Road {
+    /// The road of a configuration.
+    pub fn new(config: &Config) -> Self {
+        Road {
+            conflict_point: config.scenario.conflict_point,
+            lane_width: config.scenario.lane_width,
+        }
+    }
+
+    /// Lateral position of a lane's centre line.
+    pub fn lane_y(&self, on_ramp: bool) -> f64 {
+        if on_ramp { -self.lane_width } else { 0.0 }
+    }
+
+    /// Whether a vehicle at `x` that was on the ramp is still on it.
+    pub fn still_on_ramp(&self, was_on_ramp: bool, x: f64) -> bool {
+        was_on_ramp && x < self.conflict_point
+    }
+}
+
+/// A vehicle's footprint: a `length` x `width` rectangle centred at `(x, y)`, rotated by `phi`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Footprint {
+    /// Centre x (m).
+    pub x: f64,
+    /// Centre y (m).
+    pub y: f64,
+    /// Heading (rad).
+    pub phi: f64,
+    /// Length along the heading (m).
+    pub length: f64,
+    /// Width across the heading (m).
+    pub width: f64,
+}
+
+impl Footprint {
+    fn axes(&self) -> [Vector2<f64>; 2] {
+        let r = Rotation2::new(self.phi);
+        [r * Vector2::x(), r * Vector2::y()]
+    }
+
+    /// Half-extent of the rectangle projected on unit axis `n`.
+    fn radius_on(&self, n: &Vector2<f64>) -> f64 {
+        let [a, b] = self.axes();
+        0.5 * self.length * a.dot(n).abs() + 0.5 * self.width * b.dot(n).abs()
+    }
+}
+
+/// True when two footprints overlap with positive area (touching edges do not count).
+/// Separating-axis test over the four edge normals.
+pub fn boxes_overlap(a: &Footprint, b: &Footprint) -> bool {
+    let d = Vector2::new(b.x - a.x, b.y - a.y);
+    a.axes()
+        .iter()
+        .chain(b.axes().iter())
+        .all(|n| d.dot(n).abs() < a.radius_on(n) + b.radius_on(n))
+}

@@ -1,0 +1,84 @@
+//! Time to collision and the feasibility projection of Section V-ii.
+//!
+//! Distances are centre-to-centre longitudinal distances, as in the paper's TTC terms.
+//!
+//! **Feasible interval.** For a target-lane vehicle `i` with immediate same-lane leader `L` and
+//! follower `F`, the action `a` is feasible when, one step later (neighbours keeping their
+//! speed), `TTC(i, L) >= tau_s` and `TTC(F, i) >= tau_s`. Positions after one step do not
+//! depend on `a` (eq. 1 moves `x` with the current speed), so each condition is a bound on the
+//! next speed `v' = v + a dt`:
+//!
+//! ```text
+//! d_L' = (x_L + v_L dt) - (x + v dt)      v' <= v_L + d_L' / tau_s   ->  a <= hi
+//! d_F' = (x + v dt) - (x_F + v_F dt)      v' >= v_F - d_F' / tau_s   ->  a >= lo
+//! ```
+//!
+//! A missing neighbour gives no bound. The applied action is `min(max(a, lo), hi)`, then
+//! clipped to `[-g, g]`, then to the speed bounds `[v_min, v_max]`.
+//!
+//! **Empty interval** (`lo > hi`: no action keeps both TTCs): the leader bound wins. The
+//! vehicle applies `hi`, the largest action that keeps its TTC to its leader (clipped to
+//! `[-g, g]`, so at worst full braking), and the follower, which controls its own distance,
+//! is left to react. A vehicle is responsible for what is in front of it.
+
+use crate::num::Num;
+
+/// Stand-in for "no bound" in the generic code (m/s^2).
+pub const NO_BOUND: f64 = 1.0e9;
+
+/// Time to collision `d / dv`; infinite when `dv <= 0` (the gap is not closing).
+pub fn ttc(distance: f64, closing_speed: f64) -> f64 {
+    if closing_speed <= 0.0 {
+        f64::INFINITY
+    } else {
+        distance / closing_speed
+    }
+}
+
+/// A neighbour as the feasibility bounds see it: position, speed and a presence mask.
+#[derive(Debug, Clone)]
+pub struct Neighbor<T> {
+    /// Longitudinal position (m).
+    pub x: T,
+    /// Speed (m/s).
+    pub v: T,
+    /// 1.0 when the neighbour exists, else 0.0.
+    pub present: T,
+}
+
+/// The feasible acceleration interval `(lo, hi)` of a vehicle at `(x, v)`; see the module docs.
+/// Without a neighbour the bound is `-NO_BOUND` or `NO_BOUND`.
+pub fn feasible_interval<T: Num>(
+    x: &T,
+    v: &T,
+    leader: &Neighbor<T>,
+    follower: &Neighbor<T>,
+    dt: f64,
+    tau_s: f64,
+) -> (T, T) {
+    let x_next = x.add(&v.mul_c(dt));
+    let d_lead = leader.x.add(&leader.v.mul_c(dt)).sub(&x_next);
+    let hi = leader.v.add(&d_lead.mul_c(1.0 / tau_s)).sub(v).mul_c(1.0 / dt);
+    let d_follow = x_next.sub(&follower.x.add(&follower.v.mul_c(dt)));
+    let lo = follower
+        .v
+        .sub(&d_follow.mul_c(1.0 / tau_s))
+        .sub(v)
+        .mul_c(1.0 / dt);
+    (
+        T::select(&follower.present, &lo, &lo.full(-NO_BOUND)),
+        T::select(&leader.present, &hi, &hi.full(NO_BOUND)),
+    )
+}
+
+/// Projects `a` onto `[lo, hi]` (the upper bound wins when the interval is empty).
+pub fn project_feasible<T: Num>(a: &T, lo: &T, hi: &T) -> T {
+    a.max(lo).min(hi)
+}
+
+/// Clips an action to `[-g, g]` and then to what keeps the next speed in `[v_min, v_max]`.
+pub fn clip_action<T: Num>(a: &T, v: &T, max_accel: f64, v_min: f64, v_max: f64, dt: f64) -> T {
+    let lo = v.full(v_min).sub(v).mul_c(1.0 / dt);
+    let hi = v.full(v_max).sub(v).mul_c(1.0 / dt);
+    a.clamp_c(-max_accel, max_accel).max(&lo).min(&hi)
+}

@@ -1,0 +1,101 @@
+//! Stratified initial states (Section V-iv).
+//!
+//! Scenario `k` of a seed is drawn from its own random stream (ChaCha8, stream `k` of the seed),
+//! so it does not depend on how many scenarios are drawn or in which batch. Its stratum is
+//! `k mod (n_p * n_v)`: the ego's position range is cut into `n_p` equal parts and its speed
+//! range into `n_v`, and the ego's position and speed are uniform inside the stratum's cell.
+//!
+//! The target-lane players are then placed outward from the ego: the nearest leader one
+//! headway ahead of the ego, each further leader one headway ahead of the previous one, and the
+//! followers likewise behind. Headways (centre to centre) are uniform in `sampling.headway`
+//! (at least 7 m in the paper's setting). Speeds are uniform in `sampling.speed` restricted so
+//! that the TTC between every successive follower and leader (ego included) is at least
+//! `sampling.min_ttc`:
+//!
+//! ```text
+//! ahead of a vehicle at speed v_f, headway h:   v_lead   >= v_f - h / min_ttc
+//! behind a vehicle at speed v_l, headway h:     v_follow <= v_l + h / min_ttc
+//! ```
+//!
+//! Both ranges are never empty, so no sample is rejected.
+
+use crate::config::Config;
+use crate::sim::geometry::Road;
+use crate::sim::state::{Scene, Vehicle};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// The random stream of scenario `index` of `seed`.
+pub fn scenario_rng(seed: u64, index: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(index);
+    rng
+}
+
+/// The stratum (position cell, speed cell) of scenario `index`.
+pub fn stratum(config: &Config, index: usize) -> (usize, usize) {
+    let [np, nv] = config.sampling.strata;
+    let s = index % (np * nv);
+    (s / nv, s % nv)
+}
+
+/// Draws `count` scenarios, indices `first..first + count` of `seed`.
+pub fn sample_scenes(config: &Config, seed: u64, first: usize, count: usize) -> Vec<Scene> {
+    (first..first + count)
+        .map(|k| sample_scene(config, seed, k))
+        .collect()
+}
+
+/// Draws scenario `index` of `seed`.
+pub fn sample_scene(config: &Config, seed: u64, index: usize) -> Scene {
+    let p = &config.sampling;
+    let road = Road::new(config);
+    let mut rng = scenario_rng(seed, index as u64);
+    let (cp, cv) = stratum(config, index);
+    let cell = |range: [f64; 2], parts: usize, at: usize, u: f64| {
+        let w = (range[1] - range[0]) / parts as f64;
+        range[0] + w * (at as f64 + u)
+    };
+    let ego_x = cell(p.ego_position, p.strata[0], cp, rng.random::<f64>());
+    let ego_v = cell(p.ego_speed, p.strata[1], cv, rng.random::<f64>());
+    let uniform = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
+
+    let target = |x: f64, v: f64| Vehicle {
+        x,
+        y: road.lane_y(false),
+        v,
+        phi: 0.0,
+        on_ramp: false,
+    };
+    let n_lead = config.scenario.n_leaders;
+    let n_follow = config.scenario.n_followers;
+    let mut leaders = Vec::with_capacity(n_lead); // nearest first
+    let (mut x, mut v) = (ego_x, ego_v);
+    for _ in 0..n_lead {
+        let h = uniform(&mut rng, p.headway[0], p.headway[1]);
+        let v_lo = (v - h / p.min_ttc).max(p.speed[0]);
+        v = uniform(&mut rng, v_lo, p.speed[1].max(v_lo));
+        x += h;
+        leaders.push(target(x, v));
+    }
+    let mut followers = Vec::with_capacity(n_follow); // nearest first
+    let (mut x, mut v) = (ego_x, ego_v);
+    for _ in 0..n_follow {
+        let h = uniform(&mut rng, p.headway[0], p.headway[1]);
+        let v_hi = (v + h / p.min_ttc).min(p.speed[1]);
+        v = uniform(&mut rng, p.speed[0].min(v_hi), v_hi);
+        x -= h;
+        followers.push(target(x, v));
+    }
+    let mut vehicles = Vec::with_capacity(config.n_agents());
+    vehicles.push(Vehicle {
+        x: ego_x,
+        y: road.lane_y(true),
+        v: ego_v,
+        phi: 0.0,
+        on_ramp: true,
+    });
+    vehicles.extend(leaders.into_iter().rev()); // "1" is the front-most leader
+    vehicles.extend(followers);
+    Scene { vehicles }
+}

@@ -1,0 +1,49 @@
+//! Vehicle and scenario state.
+//!
+//! Agent numbering follows the paper's figures: index 0 is the ego (ramp) vehicle, indices
+//! `1..=n_leaders` are the target-lane leaders from the front-most ("1") to the nearest
+//! ("4" by default), and the followers follow from the nearest ("5") to the rear-most ("8").
+
+/// State of one vehicle: the bicycle state of eq. (1) plus the lane it is in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vehicle {
+    /// Longitudinal position of the centre of mass (m).
+    pub x: f64,
+    /// Lateral position of the centre of mass (m); 0 is the target-lane centre line.
+    pub y: f64,
+    /// Speed (m/s).
+    pub v: f64,
+    /// Heading (rad).
+    pub phi: f64,
+    /// True while the vehicle is on the ramp (before the conflict point).
+    pub on_ramp: bool,
+}
+
+/// One scenario: the players' states, ego first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    /// Vehicles, indexed by player number (0 = ego).
+    pub vehicles: Vec<Vehicle>,
+}
+
+impl Scene {
+    /// Number of players.
+    pub fn len(&self) -> usize {
+        self.vehicles.len()
+    }
+
+    /// True when the scene holds no vehicle.
+    pub fn is_empty(&self) -> bool {
+        self.vehicles.is_empty()
+    }
+
+    /// The ego vehicle.
+    pub fn ego(&self) -> &Vehicle {
+        &self.vehicles[0]
+    }
+}
+
+/// Label of player `i` as drawn in the paper's figures ("ego", "1", "2", ...).
+pub fn player_label(i: usize) -> String {
+    if i == 0 { "ego".to_string() } else { i.to_string() }
+}
