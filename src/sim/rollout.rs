@@ -348,7 +348,8 @@ fn run_chunk(
                     let nb = &neighbors[b * n + i];
                     let lead = neighbor_of(scene, nb.lane_leader, me);
                     let follow = neighbor_of(scene, nb.lane_follower, me);
-                    let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, dt, config.sim.tau_s);
+                    let (lo, hi) =
+                        feasible_interval(&me.x, &me.v, &lead, &follow, veh.length, dt, config.sim.tau_s);
                     a = project_feasible(&a, &lo, &hi);
                 }
                 applied[i] = clip_action(&a, &me.v, veh.max_accel, veh.v_min, veh.v_max, dt);

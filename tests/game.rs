@@ -1,0 +1,198 @@
+//! Reward terms at hand-picked states, the Theorem 3 potential, symmetry, and the MPG check.
+
+mod common;
+
+use approx::assert_abs_diff_eq;
+use common::{car, scene, smoke};
+use mpgdrive::game::mpg_check::{CheckSettings, check_mpg};
+use mpgdrive::game::terms::{comfort, conflict_time_gap, same_lane_ttc, speed_tracking};
+use mpgdrive::game::{PairReward, PaperReward, StepRewards};
+use mpgdrive::sim::sampler::sample_scene;
+use mpgdrive::sim::state::Vehicle;
+use proptest::prelude::*;
+
+#[test]
+fn self_terms_at_hand_picked_states() {
+    assert_eq!(speed_tracking(&12.0, 15.0), -9.0);
+    assert_eq!(speed_tracking(&15.0, 15.0), 0.0);
+    assert_eq!(comfort(&-2.0), -4.0);
+}
+
+#[test]
+fn same_lane_ttc_term_both_branches() {
+    // |dv| = 5 > v_c = 1: TTC = 20 / 5 = 4 s, term = -1 / (4 + 0.1).
+    assert_abs_diff_eq!(
+        same_lane_ttc(&0.0, &15.0, &20.0, &10.0, 1.0, 0.1),
+        -1.0 / 4.1,
+        epsilon = 1e-15
+    );
+    // |dv| = 0.5 <= v_c: term = -1 / (20 / 1 + 0.1).
+    assert_abs_diff_eq!(
+        same_lane_ttc(&0.0, &15.0, &20.0, &14.5, 1.0, 0.1),
+        -1.0 / 20.1,
+        epsilon = 1e-15
+    );
+    // Continuous at |dv| = v_c.
+    assert_abs_diff_eq!(
+        same_lane_ttc(&0.0, &15.0, &20.0, &14.0, 1.0, 0.1),
+        -1.0 / 20.1,
+        epsilon = 1e-15
+    );
+}
+
+#[test]
+fn conflict_time_gap_term_eq_28() {
+    // T_i = 30 / 10.1 = 2.9703 s, T_j = 20 / 15.1 = 1.3245 s;
+    // -1 / (sqrt(T_i T_j) (T_i - T_j)^2 + 0.1) = -0.1827315 (computed independently).
+    let r = conflict_time_gap(&150.0, &10.0, &160.0, &15.0, 180.0, 0.1);
+    assert_abs_diff_eq!(r, -0.182_731_493_509_931_56, epsilon = 1e-12);
+    // Same arrival time (10 / 10.1 = 20 / 20.2 s): the largest penalty, -1 / eps.
+    assert_abs_diff_eq!(
+        conflict_time_gap(&170.0, &10.0, &160.0, &20.1, 180.0, 0.1),
+        -10.0,
+        epsilon = 1e-9
+    );
+}
+
+/// The potential of Theorem 3 computed independently, straight from the terms.
+fn theorem3_potential(r: &PaperReward, v: &[Vehicle], u: &[f64]) -> f64 {
+    let [ws, wc, wt, wg] = r.weights;
+    let mut phi = 0.0;
+    for i in 0..v.len() {
+        phi += ws * speed_tracking(&v[i].v, r.v_desired) + wc * comfort(&u[i]);
+        for j in 0..i {
+            phi += if v[i].on_ramp == v[j].on_ramp {
+                wt * same_lane_ttc(&v[i].x, &v[i].v, &v[j].x, &v[j].v, r.v_c, r.epsilon)
+            } else {
+                wg * conflict_time_gap(&v[i].x, &v[i].v, &v[j].x, &v[j].v, r.conflict_point, r.epsilon)
+            };
+        }
+    }
+    phi
+}
+
+#[test]
+fn potential_equals_theorem_3_sum() {
+    let config = smoke();
+    let reward = PaperReward::new(&config);
+    let mut out = StepRewards::default();
+    for k in 0..20 {
+        let s = sample_scene(&config, 3, k);
+        let u: Vec<f64> = (0..s.len()).map(|i| (i as f64 - 4.0) * 0.7).collect();
+        out.compute(&reward, &reward, &s.vehicles, &u);
+        let expected = theorem3_potential(&reward, &s.vehicles, &u);
+        assert_abs_diff_eq!(out.potential, expected, epsilon = 1e-9 * expected.abs().max(1.0));
+        // sum_i r_i counts each pair twice and each self term once.
+        let self_sum: f64 = s
+            .vehicles
+            .iter()
+            .zip(&u)
+            .map(|(v, u)| reward.weights[0] * speed_tracking(&v.v, 15.0) + reward.weights[1] * comfort(u))
+            .sum();
+        let total: f64 = out.reward.iter().sum();
+        assert_abs_diff_eq!(
+            total,
+            2.0 * out.potential - self_sum,
+            epsilon = 1e-9 * total.abs().max(1.0)
+        );
+    }
+}
+
+#[test]
+fn logged_terms_recombine_into_the_reward() {
+    let config = smoke();
+    let reward = PaperReward::new(&config);
+    let s = scene(vec![
+        car(170.0, 10.0, true),
+        car(185.0, 12.0, false),
+        car(160.0, 15.0, false),
+    ]);
+    let u = [1.0, -0.5, 0.0];
+    let mut out = StepRewards::default();
+    out.compute(&reward, &reward, &s.vehicles, &u);
+    let [ws, wc, wt, wg] = reward.weights;
+    for (t, r) in out.terms.iter().zip(&out.reward) {
+        assert_abs_diff_eq!(
+            ws * t.speed + wc * t.comfort + wt * t.ttc + wg * t.conflict,
+            *r,
+            epsilon = 1e-12
+        );
+    }
+    // The ego (ramp) has no same-lane partner; the two target-lane cars none in another lane
+    // but the ego.
+    assert_eq!(out.terms[0].ttc, 0.0);
+    assert_abs_diff_eq!(out.terms[1].ttc, out.terms[2].ttc, epsilon = 1e-15);
+}
+
+proptest! {
+    #[test]
+    fn pair_reward_is_symmetric(
+        xi in 0.0..400.0f64, vi in 0.0..30.0f64, ri in any::<bool>(),
+        xj in 0.0..400.0f64, vj in 0.0..30.0f64, rj in any::<bool>(),
+    ) {
+        let reward = PaperReward::new(&smoke());
+        let a = car(xi, vi, ri);
+        let b = car(xj, vj, rj);
+        let (r_ab, _, _) = reward.pair(0, 1, &a, &b);
+        let (r_ba, _, _) = reward.pair(1, 0, &b, &a);
+        prop_assert_eq!(r_ab, r_ba);
+        prop_assert!(r_ab.is_finite() && r_ab <= 0.0);
+    }
+}
+
+/// The paper's pair reward, scaled up for the higher-numbered player of each pair: r_ij != r_ji.
+struct Asymmetric(PaperReward);
+
+impl PairReward for Asymmetric {
+    fn pair(&self, i: usize, j: usize, a: &Vehicle, b: &Vehicle) -> (f64, f64, f64) {
+        let (r, t, c) = self.0.pair(i, j, a, b);
+        if i > j { (1.5 * r, t, c) } else { (r, t, c) }
+    }
+    fn is_symmetric(&self) -> bool {
+        false
+    }
+}
+
+fn settings(exact: bool) -> CheckSettings {
+    CheckSettings {
+        policies: 2,
+        states: 6,
+        seed: 11,
+        exact,
+        tolerance: 1e-9,
+        threads: 2,
+    }
+}
+
+#[test]
+fn check_mpg_passes_the_paper_reward_in_the_theorem_setting() {
+    let config = smoke();
+    let report = check_mpg(&config, &settings(true), &PaperReward::new(&config));
+    assert!(report.is_potential_game, "gap {}", report.max_relative_gap);
+    assert!(report.max_relative_gap < 1e-9);
+    assert_eq!(report.players.len(), 9);
+    assert!(
+        report.players.iter().all(|p| p.min_abs_delta_j > 1e-6),
+        "deviations must change J_i"
+    );
+}
+
+#[test]
+fn check_mpg_flags_an_asymmetric_pair_reward() {
+    let config = smoke();
+    let report = check_mpg(&config, &settings(true), &Asymmetric(PaperReward::new(&config)));
+    assert!(!report.is_potential_game);
+    assert!(report.max_relative_gap > 1e-3, "gap {}", report.max_relative_gap);
+}
+
+#[test]
+fn check_mpg_measures_a_gap_with_projection_and_termination_on() {
+    let mut config = smoke();
+    config.sim.horizon = 10.0;
+    let report = check_mpg(&config, &settings(false), &PaperReward::new(&config));
+    assert!(report.feasibility && report.terminate_on_collision);
+    assert!(
+        report.max_relative_gap > 1e-9,
+        "feasibility couples players' transitions"
+    );
+}

@@ -1,0 +1,157 @@
+//! The rollout loop: determinism, merging, collisions, failures, feasibility.
+
+mod common;
+
+use approx::assert_abs_diff_eq;
+use common::{car, paper, scene, smoke};
+use mpgdrive::eval::EpisodeMetrics;
+use mpgdrive::sim::Driver;
+use mpgdrive::sim::rollout::{DriverActor, Recording, RolloutOptions, rollout};
+use mpgdrive::sim::safety::ttc;
+use mpgdrive::sim::sampler::sample_scenes;
+
+fn opts(config: &mpgdrive::Config, threads: usize) -> RolloutOptions {
+    RolloutOptions {
+        recording: Recording::Full,
+        threads,
+        ..RolloutOptions::from_config(config)
+    }
+}
+
+#[test]
+fn same_seed_gives_identical_rollouts_whatever_the_thread_count() {
+    let config = smoke();
+    let scenes = sample_scenes(&config, 9, 0, 12);
+    let run = |threads| {
+        rollout(&config, &opts(&config, threads), &scenes, || {
+            DriverActor::new(&config, Driver::Idm, Driver::Idm)
+        })
+    };
+    let a = run(1);
+    assert_eq!(a, run(1));
+    assert_eq!(a, run(3));
+    assert_eq!(a.len(), 12);
+    let t = a[0].trajectory.as_ref().unwrap();
+    assert_eq!(t.states.len(), (config.n_steps() + 1) * 9);
+    assert_eq!(t.potential.len(), config.n_steps());
+}
+
+#[test]
+fn returns_are_the_discounted_sums_of_the_recorded_rewards() {
+    let config = smoke();
+    let scenes = sample_scenes(&config, 1, 0, 3);
+    for o in rollout(&config, &opts(&config, 1), &scenes, || {
+        DriverActor::new(&config, Driver::Idm, Driver::ConstSpeed)
+    }) {
+        let t = o.trajectory.as_ref().unwrap();
+        let mut phi = 0.0;
+        let mut j0 = 0.0;
+        for (k, p) in t.potential.iter().enumerate() {
+            phi += config.sim.gamma.powi(k as i32) * p;
+            j0 += config.sim.gamma.powi(k as i32) * t.rewards[k * 9];
+        }
+        assert_abs_diff_eq!(o.potential_return, phi, epsilon = 1e-9 * phi.abs());
+        assert_abs_diff_eq!(o.returns[0], j0, epsilon = 1e-9 * j0.abs().max(1.0));
+    }
+}
+
+#[test]
+fn ego_merges_at_the_conflict_point_and_takes_the_target_lane() {
+    // Alone on the road at 10 m/s from x = 170 m: it passes x_c = 180 after 10 steps (x = 180.0
+    // is reached at the end of step 9, i.e. the 10th step).
+    let mut config = smoke();
+    config.scenario.n_leaders = 0;
+    config.scenario.n_followers = 0;
+    let s = scene(vec![car(170.0, 10.0, true)]);
+    let out = &rollout(&config, &opts(&config, 1), &[s], || {
+        DriverActor::new(&config, Driver::ConstSpeed, Driver::ConstSpeed)
+    })[0];
+    assert_eq!(out.ego_merged_at, Some(9));
+    let t = out.trajectory.as_ref().unwrap();
+    assert!(t.states[9].on_ramp && t.states[9].y == -3.66);
+    assert!(!t.states[10].on_ramp && t.states[10].y == 0.0);
+    let m = EpisodeMetrics::of(out);
+    assert!(!m.failure && !m.collision);
+    assert_abs_diff_eq!(m.mean_speed, 10.0);
+}
+
+#[test]
+fn a_collision_ends_the_episode_for_everyone() {
+    // The ego merges at 10 m/s into a stopped car 3 m past the conflict point.
+    let mut config = smoke();
+    config.scenario.n_leaders = 1;
+    config.scenario.n_followers = 0;
+    config.sim.feasibility = false;
+    let s = scene(vec![car(175.0, 10.0, true), car(183.0, 0.0, false)]);
+    let out = &rollout(&config, &opts(&config, 1), &[s], || {
+        DriverActor::new(&config, Driver::ConstSpeed, Driver::ConstSpeed)
+    })[0];
+    // After step 4 the ego is at x = 180 (merged), 3 m behind the centre of a 5 m car: overlap.
+    let c = out.collision.expect("collision");
+    assert_eq!((c.step, c.a, c.b), (4, 0, 1));
+    assert_eq!(out.steps, 5);
+    assert_eq!(out.trajectory.as_ref().unwrap().potential.len(), 5);
+    assert!(EpisodeMetrics::of(out).collision);
+}
+
+#[test]
+fn an_ego_that_never_reaches_the_conflict_point_fails() {
+    let mut config = smoke();
+    config.scenario.n_leaders = 0;
+    config.scenario.n_followers = 0;
+    let s = scene(vec![car(100.0, 0.0, true)]);
+    let out = &rollout(&config, &opts(&config, 1), &[s], || {
+        DriverActor::new(&config, Driver::ConstSpeed, Driver::ConstSpeed)
+    })[0];
+    let m = EpisodeMetrics::of(out);
+    assert!(m.failure && !m.collision);
+    assert_eq!(out.ego_merged_at, None);
+}
+
+#[test]
+fn feasibility_holds_ttc_at_tau_behind_a_steady_leader() {
+    // Target lane: a leader at 5 m/s, a follower 40 m behind at 15 m/s (TTC 4 s), both
+    // "constant speed". The projection is two-sided: the follower brakes to keep its TTC, and
+    // the leader, seeing a follower that would break it, speeds up a little. Each assumes the
+    // other keeps its speed, and each correction only widens the gap, so the bumper-gap TTC
+    // never drops below tau_s = 3 s and the gap stays positive. Without the
+    // projection the follower closes 40 - 5 = 35 m at 10 m/s: after 35 steps (3.5 s) the boxes
+    // touch, after step index 35 (the 36th) they overlap.
+    let mut config = smoke();
+    config.scenario.n_leaders = 1;
+    config.scenario.n_followers = 1;
+    config.sim.horizon = 20.0;
+    let s = scene(vec![
+        car(0.0, 0.0, true),
+        car(100.0, 5.0, false),
+        car(60.0, 15.0, false),
+    ]);
+    let run = |config: &mpgdrive::Config| {
+        rollout(config, &opts(config, 1), std::slice::from_ref(&s), || {
+            DriverActor::new(config, Driver::ConstSpeed, Driver::ConstSpeed)
+        })
+        .remove(0)
+    };
+    let on = run(&config);
+    assert!(on.collision.is_none());
+    let t = on.trajectory.as_ref().unwrap();
+    let min_ttc = t
+        .states
+        .chunks(3)
+        .map(|v| ttc(v[1].x - v[2].x - 5.0, v[2].v - v[1].v))
+        .fold(f64::INFINITY, f64::min);
+    assert!(min_ttc >= 3.0 - 1e-9, "min TTC {min_ttc}");
+    assert!(
+        t.actions.chunks(3).all(|a| a[1] >= 0.0),
+        "the leader is only ever pushed forward"
+    );
+    assert!(
+        t.actions.chunks(3).all(|a| a[2] <= 0.0),
+        "the follower only brakes"
+    );
+    let last = &t.states[t.states.len() - 3..];
+    assert!(last[2].v < 15.0 && last[1].v > 5.0 && last[1].x - last[2].x > 5.0);
+    config.sim.feasibility = false;
+    let off = run(&config);
+    assert_eq!(off.collision.map(|c| (c.step, c.a, c.b)), Some((35, 1, 2)));
+}

@@ -1,0 +1,80 @@
+//! Initial states: headway and TTC rules, strata, reproducibility.
+
+mod common;
+
+use common::{paper, smoke};
+use mpgdrive::sim::safety::ttc;
+use mpgdrive::sim::sampler::{sample_scene, sample_scenes, stratum};
+use proptest::prelude::*;
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+    #[test]
+    fn every_sampled_state_meets_headway_and_ttc_rules(seed in any::<u64>(), index in 0usize..10_000) {
+        let config = paper();
+        let s = sample_scene(&config, seed, index);
+        prop_assert_eq!(s.len(), 9);
+        prop_assert!(s.vehicles[0].on_ramp);
+        prop_assert!(s.vehicles[1..].iter().all(|v| !v.on_ramp));
+        // Players are numbered front to back: 1..4 ahead of the ego, 5..8 behind.
+        for w in s.vehicles[1..5].windows(2) { prop_assert!(w[0].x > w[1].x); }
+        for w in s.vehicles[5..].windows(2) { prop_assert!(w[0].x > w[1].x); }
+        prop_assert!(s.vehicles[4].x > s.vehicles[0].x && s.vehicles[5].x < s.vehicles[0].x);
+        // Every successive follower/leader pair along the road, ego included.
+        let mut order: Vec<_> = s.vehicles.iter().collect();
+        order.sort_by(|a, b| a.x.total_cmp(&b.x));
+        for w in order.windows(2) {
+            let (follower, leader) = (w[0], w[1]);
+            let headway = leader.x - follower.x;
+            prop_assert!(headway >= 7.0 - 1e-9, "headway {}", headway);
+            prop_assert!(ttc(headway, follower.v - leader.v) >= 4.0 - 1e-9);
+        }
+        let p = &config.sampling;
+        let ego = s.ego();
+        prop_assert!(ego.x >= p.ego_position[0] && ego.x <= p.ego_position[1]);
+        prop_assert!(ego.v >= p.ego_speed[0] && ego.v <= p.ego_speed[1]);
+        prop_assert!(s.vehicles.iter().all(|v| v.v >= 0.0 && v.v <= 30.0));
+    }
+}
+
+#[test]
+fn each_stratum_is_reached_and_its_cell_respected() {
+    let config = paper();
+    let [np, nv] = config.sampling.strata;
+    let p = &config.sampling;
+    let (wp, wv) = (
+        (p.ego_position[1] - p.ego_position[0]) / np as f64,
+        (p.ego_speed[1] - p.ego_speed[0]) / nv as f64,
+    );
+    let mut seen = vec![false; np * nv];
+    for (k, s) in sample_scenes(&config, 5, 0, 2 * np * nv).iter().enumerate() {
+        let (cp, cv) = stratum(&config, k);
+        seen[cp * nv + cv] = true;
+        let ego = s.ego();
+        let lo_x = p.ego_position[0] + wp * cp as f64;
+        let lo_v = p.ego_speed[0] + wv * cv as f64;
+        assert!(
+            ego.x >= lo_x && ego.x <= lo_x + wp,
+            "scenario {k}: x {} outside its cell",
+            ego.x
+        );
+        assert!(
+            ego.v >= lo_v && ego.v <= lo_v + wv,
+            "scenario {k}: v {} outside its cell",
+            ego.v
+        );
+    }
+    assert!(
+        seen.iter().all(|&s| s),
+        "every stratum is reached in the first n_p * n_v scenarios"
+    );
+}
+
+#[test]
+fn same_seed_same_scenes_and_batches_do_not_matter() {
+    let config = smoke();
+    let all = sample_scenes(&config, 42, 0, 10);
+    assert_eq!(all, sample_scenes(&config, 42, 0, 10));
+    assert_eq!(&all[4..], &sample_scenes(&config, 42, 4, 6)[..]);
+    assert_ne!(all, sample_scenes(&config, 43, 0, 10));
+}
