@@ -10,6 +10,7 @@ pub mod rollout;
 pub mod safety;
 pub mod sampler;
 pub mod state;
+pub mod tensor;
 
 pub use rollout::{Actor, Driver, EpisodeOutcome, Recording, RolloutOptions, Trajectory};
 pub use state::{Scene, Vehicle};

@@ -1,0 +1,283 @@
+//! The rollout over `[batch, agents]` tensors, differentiable for training.
+//!
+//! It runs the same generic equations as the scalar engine ([`crate::sim::rollout`]): eq. (1),
+//! the feasibility projection, IDM and the reward terms come from the same functions. The
+//! discrete parts carry no gradient and are computed once, on detached values, by the scalar
+//! code: who is whose neighbour ([`find_neighbors`]) and which boxes overlap
+//! ([`first_collision`]). `tests/tensor.rs` checks that both engines agree.
+
+use crate::config::Config;
+use crate::game::terms;
+use crate::num::Num;
+use crate::sim::dynamics::{Axles, Kinematics, bicycle_step};
+use crate::sim::idm::idm_accel;
+use crate::sim::neighbors::find_neighbors;
+use crate::sim::rollout::first_collision;
+use crate::sim::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
+use crate::sim::state::{Scene, Vehicle};
+use tch::{Kind, Tensor};
+
+/// States of a batch of scenarios, each field `[batch, agents]`.
+#[derive(Debug)]
+pub struct TensorBatch {
+    /// Longitudinal positions (m).
+    pub x: Tensor,
+    /// Lateral positions (m).
+    pub y: Tensor,
+    /// Speeds (m/s).
+    pub v: Tensor,
+    /// Headings (rad).
+    pub phi: Tensor,
+    /// 1.0 on the ramp, 0.0 in the target lane (no gradient).
+    pub on_ramp: Tensor,
+}
+
+fn to_vec(t: &Tensor) -> Vec<f64> {
+    Vec::<f64>::try_from(t.detach().to_kind(Kind::Double).flatten(0, -1)).expect("a CPU tensor")
+}
+
+impl TensorBatch {
+    /// Tensors of `kind` (f32 for training, f64 where exactness is checked) from scenes.
+    pub fn from_scenes(scenes: &[Scene], kind: Kind) -> Self {
+        let (b, n) = (scenes.len() as i64, scenes[0].len() as i64);
+        let field = |f: fn(&Vehicle) -> f64| {
+            let data: Vec<f64> = scenes.iter().flat_map(|s| s.vehicles.iter().map(f)).collect();
+            Tensor::from_slice(&data).reshape([b, n]).to_kind(kind)
+        };
+        TensorBatch {
+            x: field(|v| v.x),
+            y: field(|v| v.y),
+            v: field(|v| v.v),
+            phi: field(|v| v.phi),
+            on_ramp: field(|v| if v.on_ramp { 1.0 } else { 0.0 }),
+        }
+    }
+
+    /// The detached states as scenes.
+    pub fn to_scenes(&self) -> Vec<Scene> {
+        let n = self.x.size()[1] as usize;
+        let (x, y, v, phi, r) = (
+            to_vec(&self.x),
+            to_vec(&self.y),
+            to_vec(&self.v),
+            to_vec(&self.phi),
+            to_vec(&self.on_ramp),
+        );
+        (0..x.len() / n)
+            .map(|b| Scene {
+                vehicles: (b * n..(b + 1) * n)
+                    .map(|k| Vehicle {
+                        x: x[k],
+                        y: y[k],
+                        v: v[k],
+                        phi: phi[k],
+                        on_ramp: r[k] > 0.5,
+                    })
+                    .collect(),
+            })
+            .collect()
+    }
+}
+
+/// Neighbour indices as `[batch, agents]` tensors (a missing neighbour points at the player
+/// itself, with presence 0, as the scalar engine's [`crate::sim::rollout::neighbor_of`] does).
+#[derive(Debug)]
+pub struct NeighborIndex {
+    index: [Tensor; 4],
+    present: [Tensor; 4],
+}
+
+/// Which neighbour: the four notions of [`crate::sim::neighbors::Neighbors`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Which {
+    /// Nearest ahead, any lane.
+    Leader = 0,
+    /// Nearest behind, any lane.
+    Follower = 1,
+    /// Nearest ahead, same lane.
+    LaneLeader = 2,
+    /// Nearest behind, same lane.
+    LaneFollower = 3,
+}
+
+impl NeighborIndex {
+    /// Neighbours of the batch's current (detached) state.
+    pub fn of(batch: &TensorBatch) -> Self {
+        let scenes = batch.to_scenes();
+        let n = scenes[0].len();
+        let mut idx = vec![vec![0i64; scenes.len() * n]; 4];
+        let mut present = vec![vec![0f64; scenes.len() * n]; 4];
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        for (b, scene) in scenes.iter().enumerate() {
+            find_neighbors(scene, &mut order, &mut nb);
+            for (i, w) in nb.iter().enumerate() {
+                for (k, who) in [w.leader, w.follower, w.lane_leader, w.lane_follower]
+                    .into_iter()
+                    .enumerate()
+                {
+                    idx[k][b * n + i] = who.unwrap_or(i) as i64;
+                    present[k][b * n + i] = if who.is_some() { 1.0 } else { 0.0 };
+                }
+            }
+        }
+        let shape = [scenes.len() as i64, n as i64];
+        let kind = batch.x.kind();
+        NeighborIndex {
+            index: std::array::from_fn(|k| Tensor::from_slice(&idx[k]).reshape(shape)),
+            present: std::array::from_fn(|k| Tensor::from_slice(&present[k]).reshape(shape).to_kind(kind)),
+        }
+    }
+
+    /// The chosen neighbour's position, speed and presence, gathered from the batch.
+    pub fn get(&self, batch: &TensorBatch, which: Which) -> Neighbor<Tensor> {
+        let k = which as usize;
+        Neighbor {
+            x: batch.x.gather(1, &self.index[k], false),
+            v: batch.v.gather(1, &self.index[k], false),
+            present: self.present[k].shallow_clone(),
+        }
+    }
+}
+
+fn select_neighbor(mask: &Tensor, a: &Neighbor<Tensor>, b: &Neighbor<Tensor>) -> Neighbor<Tensor> {
+    Neighbor {
+        x: <Tensor as Num>::select(mask, &a.x, &b.x),
+        v: <Tensor as Num>::select(mask, &a.v, &b.v),
+        present: <Tensor as Num>::select(mask, &a.present, &b.present),
+    }
+}
+
+/// IDM accelerations of every player (behind the same-lane leader, or on the ramp behind the
+/// nearest leader).
+pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> Tensor {
+    let leader = select_neighbor(
+        &batch.on_ramp,
+        &nb.get(batch, Which::Leader),
+        &nb.get(batch, Which::LaneLeader),
+    );
+    idm_accel(&batch.x, &batch.v, &leader, config.vehicle.length, &config.idm)
+}
+
+/// Applied actions: feasibility projection for target-lane players (when `feasibility`), then
+/// `[-g, g]` and the speed bounds.
+pub fn apply_limits(
+    config: &Config,
+    batch: &TensorBatch,
+    nb: &NeighborIndex,
+    raw: &Tensor,
+    feasibility: bool,
+) -> Tensor {
+    let veh = &config.vehicle;
+    let dt = config.sim.dt;
+    let a = if feasibility {
+        let lead = nb.get(batch, Which::LaneLeader);
+        let follow = nb.get(batch, Which::LaneFollower);
+        let (lo, hi) = feasible_interval(
+            &batch.x,
+            &batch.v,
+            &lead,
+            &follow,
+            veh.length,
+            dt,
+            config.sim.tau_s,
+        );
+        <Tensor as Num>::select(&batch.on_ramp, raw, &project_feasible(raw, &lo, &hi))
+    } else {
+        raw.shallow_clone()
+    };
+    clip_action(&a, &batch.v, veh.max_accel, veh.v_min, veh.v_max, dt)
+}
+
+/// Rewards `r_i` (`[batch, agents]`) and potential `phi` (`[batch]`) of the paper's reward.
+pub fn rewards(config: &Config, batch: &TensorBatch, u: &Tensor) -> (Tensor, Tensor) {
+    let r = &config.reward;
+    let x_c = config.scenario.conflict_point;
+    let own = terms::speed_tracking(&batch.v, r.v_desired) * r.w_speed + terms::comfort(u) * r.w_comfort;
+    let (xi, xj) = (batch.x.unsqueeze(2), batch.x.unsqueeze(1));
+    let (vi, vj) = (batch.v.unsqueeze(2), batch.v.unsqueeze(1));
+    let same_lane = 1.0 - (batch.on_ramp.unsqueeze(2) - batch.on_ramp.unsqueeze(1)).abs();
+    let ttc = terms::same_lane_ttc(&xi, &vi, &xj, &vj, r.v_c, r.epsilon) * r.w_ttc;
+    let gap = terms::conflict_time_gap(&xi, &vi, &xj, &vj, x_c, r.epsilon) * r.w_conflict;
+    let pair = &same_lane * ttc + (1.0 - &same_lane) * gap;
+    let n = batch.x.size()[1];
+    let ones = Tensor::ones([n, n], (batch.x.kind(), batch.x.device()));
+    let off_diagonal = &ones - Tensor::eye(n, (batch.x.kind(), batch.x.device()));
+    let reward = &own + (&pair * &off_diagonal).sum_dim_intlist(2, false, None);
+    let potential = own.sum_dim_intlist(1, false, None)
+        + (&pair * ones.tril(-1)).sum_dim_intlist([1, 2].as_slice(), false, None);
+    (reward, potential)
+}
+
+/// Eq. (1) with zero steering, then the merge: a ramp player reaching `x_c` joins the target
+/// lane.
+pub fn advance(config: &Config, batch: &TensorBatch, u: &Tensor) -> TensorBatch {
+    let axles = Axles {
+        l_f: config.vehicle.l_f,
+        l_r: config.vehicle.l_r,
+    };
+    let k = Kinematics {
+        x: batch.x.shallow_clone(),
+        y: batch.y.shallow_clone(),
+        v: batch.v.shallow_clone(),
+        phi: batch.phi.shallow_clone(),
+    };
+    let next = bicycle_step(&k, u, &u.zeros_like(), axles, config.sim.dt);
+    let before_conflict = Num::gt(&next.x.full(config.scenario.conflict_point), &next.x);
+    let on_ramp = &batch.on_ramp * before_conflict;
+    TensorBatch {
+        y: on_ramp.mul_c(-config.scenario.lane_width),
+        x: next.x,
+        v: next.v,
+        phi: next.phi,
+        on_ramp,
+    }
+}
+
+/// Discounted returns `[batch, agents]` and potential returns `[batch]` of a rollout.
+#[derive(Debug)]
+pub struct TensorReturns {
+    /// `J_i` per scenario and player.
+    pub returns: Tensor,
+    /// `sum_t gamma^t phi` per scenario.
+    pub potential: Tensor,
+}
+
+/// Runs `steps` steps; `act` gives the raw actions of every player from the state and its
+/// neighbours. An episode stops counting rewards after its first collision when
+/// `terminate_on_collision`.
+pub fn rollout(
+    config: &Config,
+    scenes: &[Scene],
+    kind: Kind,
+    steps: usize,
+    feasibility: bool,
+    terminate_on_collision: bool,
+    mut act: impl FnMut(&TensorBatch, &NeighborIndex, usize) -> Tensor,
+) -> TensorReturns {
+    let mut batch = TensorBatch::from_scenes(scenes, kind);
+    let (b, n) = (scenes.len() as i64, scenes[0].len() as i64);
+    let mut returns = Tensor::zeros([b, n], (kind, tch::Device::Cpu));
+    let mut potential = Tensor::zeros([b], (kind, tch::Device::Cpu));
+    let mut alive = vec![1.0f64; scenes.len()];
+    let mut discount = 1.0;
+    for step in 0..steps {
+        let nb = NeighborIndex::of(&batch);
+        let raw = act(&batch, &nb, step);
+        let u = apply_limits(config, &batch, &nb, &raw, feasibility);
+        let (r, phi) = rewards(config, &batch, &u);
+        let live = Tensor::from_slice(&alive).to_kind(kind);
+        returns = returns + r * live.unsqueeze(1) * discount;
+        potential = potential + phi * &live * discount;
+        batch = advance(config, &batch, &u);
+        if terminate_on_collision {
+            let v = &config.vehicle;
+            for (a, scene) in alive.iter_mut().zip(batch.to_scenes()) {
+                if first_collision(&scene, v.length, v.width).is_some() {
+                    *a = 0.0;
+                }
+            }
+        }
+        discount *= config.sim.gamma;
+    }
+    TensorReturns { returns, potential }
+}

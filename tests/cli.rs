@@ -1,0 +1,119 @@
+//! The binary: bad input gets one clear message and exit code 2; the commands run end to end.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_mpgdrive"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+fn smoke_text() -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/smoke.toml")).unwrap()
+}
+
+/// Writes `text` to a fresh temporary config file.
+fn temp_config(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn run_with(name: &str, text: &str) -> Output {
+    let path = temp_config(name, text);
+    bin()
+        .args(["demo", "--scenarios", "2", "--config"])
+        .arg(&path)
+        .output()
+        .unwrap()
+}
+
+/// Exit code 2, one line on stderr naming `needle`, no panic.
+fn assert_rejected(out: &Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    assert!(stderr.contains(needle), "{needle:?} not in {stderr:?}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "one message: {stderr:?}");
+    assert!(!stderr.contains("panicked") && !stderr.contains("backtrace"));
+    assert!(out.stdout.is_empty(), "no work done");
+}
+
+#[test]
+fn unknown_key_is_rejected_by_name() {
+    let text = smoke_text().replace("[sim]\n", "[sim]\ntime_step = 0.1\n");
+    assert_rejected(&run_with("unknown", &text), "time_step");
+}
+
+#[test]
+fn nan_is_rejected_by_key() {
+    let text = smoke_text().replace("conflict_point = 180.0", "conflict_point = nan");
+    assert_rejected(&run_with("nan", &text), "scenario.conflict_point");
+}
+
+#[test]
+fn negative_time_step_is_rejected_by_key() {
+    let text = smoke_text().replace("dt = 0.1 ", "dt = -0.1 ");
+    assert_rejected(&run_with("negative", &text), "sim.dt");
+}
+
+#[test]
+fn conflict_point_outside_the_road_is_rejected() {
+    let text = smoke_text().replace("conflict_point = 180.0", "conflict_point = 450.0");
+    assert_rejected(&run_with("outside", &text), "scenario.conflict_point");
+}
+
+#[test]
+fn inverted_range_is_rejected_by_key() {
+    let text = smoke_text().replace("headway = [7.0, 30.0]", "headway = [30.0, 7.0]");
+    assert_rejected(&run_with("inverted", &text), "sampling.headway");
+}
+
+#[test]
+fn missing_config_file_is_rejected() {
+    let out = bin()
+        .args(["demo", "--config", "no/such/file.toml"])
+        .output()
+        .unwrap();
+    assert_rejected(&out, "no/such/file.toml");
+}
+
+#[test]
+fn demo_runs_and_prints_the_metrics() {
+    let out = bin()
+        .args(["demo", "--config", "configs/smoke.toml", "--scenarios", "4"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("| Collision rate |") && stdout.contains("Constant speed"));
+}
+
+#[test]
+fn check_mpg_exact_json_reports_every_player_below_1e_9() {
+    let out = bin()
+        .args([
+            "check-mpg",
+            "--config",
+            "configs/smoke.toml",
+            "--exact",
+            "--json",
+            "--policies",
+            "2",
+            "--states",
+            "4",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let players = v["players"].as_array().unwrap();
+    assert_eq!(players.len(), 9);
+    for p in players {
+        assert!(p["max_relative_gap"].as_f64().unwrap() < 1e-9, "{p}");
+    }
+    assert_eq!(v["is_potential_game"], true);
+    assert_eq!(v["setting"], "exact");
+}

@@ -1,0 +1,105 @@
+//! The tensor engine (training) against the scalar engine (evaluation): the same equations,
+//! so the same numbers; and gradients that match finite differences.
+
+mod common;
+
+use common::paper;
+use mpgdrive::sim::Driver;
+use mpgdrive::sim::rollout::{DriverActor, RolloutOptions, rollout};
+use mpgdrive::sim::sampler::sample_scenes;
+use mpgdrive::sim::tensor::{self, idm_actions};
+use tch::{Kind, Tensor};
+
+fn compare(ego: Driver, others: Driver, feasibility: bool, terminate: bool) {
+    let config = paper();
+    let scenes = sample_scenes(&config, 17, 0, 24);
+    let steps = 150;
+    let opts = RolloutOptions {
+        feasibility,
+        terminate_on_collision: terminate,
+        steps,
+        threads: 2,
+        ..RolloutOptions::from_config(&config)
+    };
+    let scalar = rollout(&config, &opts, &scenes, || DriverActor::new(&config, ego, others));
+    let mask = |d: Driver| if d == Driver::Idm { 1.0 } else { 0.0 };
+    let mut weights = vec![mask(others); 9];
+    weights[0] = mask(ego);
+    let weights = Tensor::from_slice(&weights).to_kind(Kind::Double);
+    let t = tch::no_grad(|| {
+        tensor::rollout(
+            &config,
+            &scenes,
+            Kind::Double,
+            steps,
+            feasibility,
+            terminate,
+            |b, nb, _| idm_actions(&config, b, nb) * &weights,
+        )
+    });
+    let returns = Vec::<f64>::try_from(t.returns.flatten(0, -1)).unwrap();
+    let potential = Vec::<f64>::try_from(t.potential).unwrap();
+    let mut collisions = 0;
+    for (k, o) in scalar.iter().enumerate() {
+        collisions += usize::from(o.collision.is_some());
+        let tol = 1e-6 * o.potential_return.abs().max(1.0);
+        assert!(
+            (o.potential_return - potential[k]).abs() < tol,
+            "scenario {k}: {} vs {}",
+            o.potential_return,
+            potential[k]
+        );
+        for i in 0..9 {
+            let (a, b) = (o.returns[i], returns[k * 9 + i]);
+            assert!(
+                (a - b).abs() < 1e-6 * a.abs().max(1.0),
+                "scenario {k} player {i}: {a} vs {b}"
+            );
+        }
+    }
+    if terminate {
+        assert!(collisions > 0, "the comparison must cover terminated episodes");
+    }
+}
+
+#[test]
+fn engines_agree_with_idm_players_and_feasibility() {
+    compare(Driver::Idm, Driver::Idm, true, true);
+}
+
+#[test]
+fn engines_agree_with_constant_speed_players() {
+    compare(Driver::Idm, Driver::ConstSpeed, true, true);
+}
+
+#[test]
+fn engines_agree_in_the_theorem_setting() {
+    compare(Driver::Idm, Driver::Idm, false, false);
+}
+
+#[test]
+fn potential_gradient_matches_finite_differences() {
+    // d Phi / d theta for a common acceleration offset theta added to every IDM action.
+    let config = paper();
+    let scenes = sample_scenes(&config, 4, 0, 8);
+    let phi = |theta: &Tensor| {
+        tensor::rollout(&config, &scenes, Kind::Double, 60, false, false, |b, nb, _| {
+            idm_actions(&config, b, nb) + theta
+        })
+        .potential
+        .mean(Kind::Double)
+    };
+    let theta = Tensor::from(0.2f64).set_requires_grad(true);
+    phi(&theta).backward();
+    let grad = theta.grad().double_value(&[]);
+    let h = 1e-5;
+    let fd = tch::no_grad(|| {
+        (phi(&Tensor::from(0.2 + h)).double_value(&[]) - phi(&Tensor::from(0.2 - h)).double_value(&[]))
+            / (2.0 * h)
+    });
+    assert!(grad.is_finite() && grad != 0.0);
+    assert!(
+        (grad - fd).abs() < 1e-5 * fd.abs().max(1.0),
+        "autograd {grad} vs finite difference {fd}"
+    );
+}
