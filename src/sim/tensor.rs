@@ -245,6 +245,8 @@ pub struct TensorReturns {
 /// Runs `steps` steps; `act` gives the raw actions of every player from the state and its
 /// neighbours. An episode stops counting rewards after its first collision when
 /// `terminate_on_collision`.
+// `a = a + b` on purpose: tch's `+=` is an in-place op, which autograd handles less freely.
+#[allow(clippy::assign_op_pattern)]
 pub fn rollout(
     config: &Config,
     scenes: &[Scene],
