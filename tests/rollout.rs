@@ -3,7 +3,7 @@
 mod common;
 
 use approx::assert_abs_diff_eq;
-use common::{car, paper, scene, smoke};
+use common::{car, scene, smoke};
 use mpgdrive::eval::EpisodeMetrics;
 use mpgdrive::sim::Driver;
 use mpgdrive::sim::rollout::{DriverActor, Recording, RolloutOptions, rollout};
