@@ -6,7 +6,7 @@ use clap::{Args, Parser, Subcommand};
 use mpgdrive::config::{Config, ConfigError};
 use mpgdrive::eval::{EpisodeMetrics, Summary};
 use mpgdrive::game::PaperReward;
-use mpgdrive::game::mpg_check::{CheckSettings, check_mpg};
+use mpgdrive::game::mpg_check::{CheckSettings, check_mpg, evaluations};
 use mpgdrive::sim::Driver;
 use mpgdrive::sim::rollout::{DriverActor, RolloutOptions, rollout};
 use mpgdrive::sim::sampler::sample_scenes;
@@ -154,7 +154,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 tolerance,
                 threads,
             };
-            let report = check_mpg(&config, &settings, &PaperReward::new(&config));
+            // Drawn on stderr, and hidden when stderr is not a terminal.
+            let bar = indicatif::ProgressBar::new(evaluations(&config, &settings) as u64).with_style(
+                indicatif::ProgressStyle::with_template("check-mpg {bar:30} {pos}/{len} rollouts, ETA {eta}")
+                    .context("progress bar template")?,
+            );
+            let report = check_mpg(&config, &settings, &PaperReward::new(&config), &mut || bar.inc(1));
+            bar.finish_and_clear();
             if json {
                 println!(
                     "{}",

@@ -167,7 +167,15 @@ fn settings(exact: bool) -> CheckSettings {
 #[test]
 fn check_mpg_passes_the_paper_reward_in_the_theorem_setting() {
     let config = smoke();
-    let report = check_mpg(&config, &settings(true), &PaperReward::new(&config));
+    let mut calls = 0;
+    let report = check_mpg(&config, &settings(true), &PaperReward::new(&config), &mut || {
+        calls += 1
+    });
+    assert_eq!(
+        calls,
+        2 * (9 + 1),
+        "one base and nine deviated evaluations per joint policy"
+    );
     assert!(report.is_potential_game, "gap {}", report.max_relative_gap);
     assert!(report.max_relative_gap < 1e-9);
     assert_eq!(report.players.len(), 9);
@@ -180,7 +188,12 @@ fn check_mpg_passes_the_paper_reward_in_the_theorem_setting() {
 #[test]
 fn check_mpg_flags_an_asymmetric_pair_reward() {
     let config = smoke();
-    let report = check_mpg(&config, &settings(true), &Asymmetric(PaperReward::new(&config)));
+    let report = check_mpg(
+        &config,
+        &settings(true),
+        &Asymmetric(PaperReward::new(&config)),
+        &mut || {},
+    );
     assert!(!report.is_potential_game);
     assert!(report.max_relative_gap > 1e-3, "gap {}", report.max_relative_gap);
 }
@@ -189,7 +202,7 @@ fn check_mpg_flags_an_asymmetric_pair_reward() {
 fn check_mpg_measures_a_gap_with_projection_and_termination_on() {
     let mut config = smoke();
     config.sim.horizon = 10.0;
-    let report = check_mpg(&config, &settings(false), &PaperReward::new(&config));
+    let report = check_mpg(&config, &settings(false), &PaperReward::new(&config), &mut || {});
     assert!(report.feasibility && report.terminate_on_collision);
     assert!(
         report.max_relative_gap > 1e-9,

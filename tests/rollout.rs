@@ -18,6 +18,14 @@ fn opts(config: &mpgdrive::Config, threads: usize) -> RolloutOptions {
     }
 }
 
+/// One scene, every player at constant speed, fully recorded.
+fn constant_speed(config: &mpgdrive::Config, s: mpgdrive::sim::Scene) -> mpgdrive::sim::EpisodeOutcome {
+    rollout(config, &opts(config, 1), &[s], || {
+        DriverActor::new(config, Driver::ConstSpeed, Driver::ConstSpeed)
+    })
+    .remove(0)
+}
+
 #[test]
 fn same_seed_gives_identical_rollouts_whatever_the_thread_count() {
     let config = smoke();
@@ -63,9 +71,7 @@ fn ego_merges_at_the_conflict_point_and_takes_the_target_lane() {
     config.scenario.n_leaders = 0;
     config.scenario.n_followers = 0;
     let s = scene(vec![car(170.0, 10.0, true)]);
-    let out = &rollout(&config, &opts(&config, 1), &[s], || {
-        DriverActor::new(&config, Driver::ConstSpeed, Driver::ConstSpeed)
-    })[0];
+    let out = &constant_speed(&config, s);
     assert_eq!(out.ego_merged_at, Some(9));
     let t = out.trajectory.as_ref().unwrap();
     assert!(t.states[9].on_ramp && t.states[9].y == -3.66);
@@ -83,9 +89,7 @@ fn a_collision_ends_the_episode_for_everyone() {
     config.scenario.n_followers = 0;
     config.sim.feasibility = false;
     let s = scene(vec![car(175.0, 10.0, true), car(183.0, 0.0, false)]);
-    let out = &rollout(&config, &opts(&config, 1), &[s], || {
-        DriverActor::new(&config, Driver::ConstSpeed, Driver::ConstSpeed)
-    })[0];
+    let out = &constant_speed(&config, s);
     // After step 4 the ego is at x = 180 (merged), 3 m behind the centre of a 5 m car: overlap.
     let c = out.collision.expect("collision");
     assert_eq!((c.step, c.a, c.b), (4, 0, 1));
@@ -100,9 +104,7 @@ fn an_ego_that_never_reaches_the_conflict_point_fails() {
     config.scenario.n_leaders = 0;
     config.scenario.n_followers = 0;
     let s = scene(vec![car(100.0, 0.0, true)]);
-    let out = &rollout(&config, &opts(&config, 1), &[s], || {
-        DriverActor::new(&config, Driver::ConstSpeed, Driver::ConstSpeed)
-    })[0];
+    let out = &constant_speed(&config, s);
     let m = EpisodeMetrics::of(out);
     assert!(m.failure && !m.collision);
     assert_eq!(out.ego_merged_at, None);

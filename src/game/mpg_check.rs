@@ -166,8 +166,19 @@ fn evaluate(
     (j, phi)
 }
 
-/// Runs the check with pair reward `pair` (the paper's, or a test's).
-pub fn check_mpg(config: &Config, settings: &CheckSettings, pair: &dyn PairReward) -> CheckReport {
+/// Number of joint-policy evaluations a check runs, `K (N + 1)`.
+pub fn evaluations(config: &Config, settings: &CheckSettings) -> usize {
+    settings.policies * (config.n_agents() + 1)
+}
+
+/// Runs the check with pair reward `pair` (the paper's, or a test's); `progress` is called
+/// after each of the [`evaluations`] joint-policy evaluations.
+pub fn check_mpg(
+    config: &Config,
+    settings: &CheckSettings,
+    pair: &dyn PairReward,
+    progress: &mut dyn FnMut(),
+) -> CheckReport {
     let mut opts = RolloutOptions::from_config(config);
     opts.recording = Recording::Summary;
     opts.threads = settings.threads;
@@ -194,10 +205,12 @@ pub fn check_mpg(config: &Config, settings: &CheckSettings, pair: &dyn PairRewar
             dt: config.sim.dt,
         };
         let (j0, phi0) = evaluate(config, &opts, &scenes, pair, &base);
+        progress();
         for (i, gap) in players.iter_mut().enumerate() {
             let mut deviated = base.clone();
             deviated.players[i] = OwnStatePolicy::random(&mut rng);
             let (j1, phi1) = evaluate(config, &opts, &scenes, pair, &deviated);
+            progress();
             let delta_j = j1[i] - j0[i];
             let delta_phi = phi1 - phi0;
             let abs_gap = (delta_j - delta_phi).abs();
