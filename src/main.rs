@@ -78,16 +78,9 @@ fn usage(message: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(UsageMessage(message.into()))
 }
 
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
 struct UsageMessage(String);
-
-impl std::fmt::Display for UsageMessage {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageMessage {}
 
 fn main() -> ExitCode {
     let cli = Cli::parse();

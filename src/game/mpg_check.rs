@@ -34,7 +34,7 @@ pub const POLICY_ACCEL: f64 = 3.0;
 /// Parameters of one player's random own-state policy.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OwnStatePolicy {
-    /// Feedback gain `k` (1/s... per m/s).
+    /// Feedback gain `k` on the speed error (per m/s, inside the tanh).
     pub gain: f64,
     /// Target speed `v*` (m/s).
     pub target_speed: f64,
