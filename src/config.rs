@@ -11,7 +11,7 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     /// The file could not be read.
-    #[error("cannot read config {path}: {source}")]
+    #[error("cannot read config {path}")]
     Read {
         /// The file.
         path: String,
@@ -156,6 +156,28 @@ pub struct EvalConfig {
     pub test_scenarios: usize,
 }
 
+/// Training (Algorithm 1) settings.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TrainConfig {
+    /// Width of each hidden layer of the shared network.
+    pub hidden: usize,
+    /// Gradient-ascent epochs (one minibatch each).
+    pub epochs: usize,
+    /// Initial states per minibatch.
+    pub batch: usize,
+    /// Adam step size.
+    pub learning_rate: f64,
+    /// Largest gradient norm (clipped above).
+    pub grad_clip: f64,
+    /// Fixed probe initial states for the curves (disjoint from training).
+    pub probe_scenarios: usize,
+    /// Epochs between checkpoints.
+    pub checkpoint_every: usize,
+    /// libtorch intra-op threads.
+    pub threads: usize,
+}
+
 /// The whole configuration (one TOML file).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -176,6 +198,8 @@ pub struct Config {
     pub sampling: SamplingConfig,
     /// Evaluation.
     pub eval: EvalConfig,
+    /// Training.
+    pub train: TrainConfig,
 }
 
 impl Config {

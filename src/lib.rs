@@ -10,6 +10,7 @@ pub mod game;
 pub mod num;
 pub mod policy;
 pub mod sim;
+pub mod train;
 
 pub use config::{Config, ConfigError};
 

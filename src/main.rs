@@ -10,6 +10,7 @@ use mpgdrive::game::mpg_check::{CheckSettings, check_mpg, evaluations};
 use mpgdrive::sim::Driver;
 use mpgdrive::sim::rollout::{DriverActor, RolloutOptions, rollout};
 use mpgdrive::sim::sampler::sample_scenes;
+use mpgdrive::train::{Mode, TrainRun, train};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -51,6 +52,24 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Train a policy per seed: the shared MPG policy (Algorithm 1) or the single-agent baseline.
+    Train {
+        /// Configuration file (TOML).
+        #[arg(long, default_value = "configs/paper.toml")]
+        config: PathBuf,
+        /// What to learn: mpg (shared policy, potential) or sarl (ego only, IDM players).
+        #[arg(long, value_enum, default_value_t = ModeArg::Mpg)]
+        mode: ModeArg,
+        /// Seeds, comma-separated (default: the configuration's eval.seeds).
+        #[arg(long, value_delimiter = ',')]
+        seeds: Option<Vec<u64>>,
+        /// Output directory: one seedK.safetensors / seedK.json / seedK.curves.csv per seed.
+        #[arg(long)]
+        out: PathBuf,
+        /// Continue from the checkpoints in the output directory.
+        #[arg(long)]
+        resume: bool,
+    },
     /// Check Definition 3 numerically: Delta J_i against Delta Phi for unilateral deviations.
     CheckMpg {
         #[command(flatten)]
@@ -71,6 +90,12 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ModeArg {
+    Mpg,
+    Sarl,
 }
 
 /// An error in the user's input, not a failure of the tool (exit code 2).
@@ -120,6 +145,55 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 return Err(usage("--scenarios must be at least 1"));
             }
             demo(&config, seed, threads, scenarios, json)?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Train {
+            config,
+            mode,
+            seeds,
+            out,
+            resume,
+        } => {
+            let config = Config::load(&config)?;
+            let mode = match mode {
+                ModeArg::Mpg => Mode::Mpg,
+                ModeArg::Sarl => Mode::Sarl,
+            };
+            let seeds = seeds.unwrap_or_else(|| config.eval.seeds.clone());
+            let command = std::env::args().collect::<Vec<_>>().join(" ");
+            for seed in seeds {
+                let run = TrainRun {
+                    mode,
+                    seed,
+                    out: out.join(format!("seed{seed}")),
+                    resume,
+                    command: command.clone(),
+                };
+                let bar = indicatif::ProgressBar::new(config.train.epochs as u64).with_style(
+                    indicatif::ProgressStyle::with_template(
+                        "{prefix} {bar:30} epoch {pos}/{len} {msg} ETA {eta}",
+                    )
+                    .context("progress bar template")?,
+                );
+                bar.set_prefix(format!("{} seed {seed}", mode.name()));
+                let records = train(&config, &run, &mut |r| {
+                    bar.set_message(format!("objective {:.1}", r.probe_objective));
+                    bar.set_position(r.epoch as u64);
+                })?;
+                bar.finish_and_clear();
+                if let Some(r) = records.last() {
+                    println!(
+                        "{} seed {seed}: {} epochs in {:.1} s, probe objective {:.2}, probe collisions {:.3}, failures {:.3} -> {}",
+                        mode.name(),
+                        r.epoch,
+                        r.wall_seconds,
+                        r.probe_objective,
+                        r.probe_collision_rate,
+                        r.probe_failure_rate,
+                        run.out.display()
+                    );
+                }
+            }
             Ok(ExitCode::SUCCESS)
         }
         Command::CheckMpg {

@@ -1,5 +1,8 @@
-//! Policies: the Table I observation builder and the batched policy interface.
+//! Policies: the Table I observation builder, the shared network and policy files.
 
+pub mod file;
+pub mod network;
 pub mod observation;
 
+pub use network::{NetSpec, PolicyNet};
 pub use observation::{BatchPolicy, LinearPolicy, PolicyActor, obs_dim};

@@ -185,3 +185,26 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
         }
     }
 }
+
+/// Observations of every player of a tensor batch, `[batch, agents, obs_dim]`, from the same
+/// [`features`] as [`observe`] (differentiable in the states).
+pub fn tensor_observations(
+    x_c: f64,
+    batch: &crate::sim::tensor::TensorBatch,
+    nb: &crate::sim::tensor::NeighborIndex,
+) -> tch::Tensor {
+    use crate::sim::tensor::Which;
+    let f = features(
+        x_c,
+        &batch.x,
+        &batch.v,
+        &batch.on_ramp,
+        &nb.get(batch, Which::Leader),
+        &nb.get(batch, Which::Follower),
+    );
+    let size = batch.x.size();
+    let one_hot = tch::Tensor::eye(size[1], (batch.x.kind(), batch.x.device()))
+        .unsqueeze(0)
+        .expand([size[0], size[1], size[1]], false);
+    tch::Tensor::cat(&[tch::Tensor::stack(&f, 2), one_hot], 2)
+}

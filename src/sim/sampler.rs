@@ -25,6 +25,28 @@ use crate::sim::state::{Scene, Vehicle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// What a set of initial states is for. Each purpose draws from its own seed, so training,
+/// probe and test states of one seed are different draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Purpose {
+    /// Training minibatches.
+    Train,
+    /// The fixed probe set of the training curves.
+    Probe,
+    /// Evaluation scenarios.
+    Test,
+}
+
+/// The seed of the initial states of `purpose` for run seed `seed`.
+pub fn purpose_seed(seed: u64, purpose: Purpose) -> u64 {
+    let salt: u64 = match purpose {
+        Purpose::Train => 0x7472_6169_6e00_0000,
+        Purpose::Probe => 0x7072_6f62_6500_0000,
+        Purpose::Test => 0x7465_7374_0000_0000,
+    };
+    seed ^ salt
+}
+
 /// The random stream of scenario `index` of `seed`.
 pub fn scenario_rng(seed: u64, index: u64) -> ChaCha8Rng {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -1,0 +1,165 @@
+//! Policy files: weights in safetensors (`NAME.safetensors`) plus a JSON sidecar
+//! (`NAME.json`) holding the observation layout version, network sizes and scales, action
+//! scale, training configuration, seed, the command that made it, code version and metrics.
+//!
+//! Both files are written to temporary names and renamed, so a reader never sees half a
+//! policy. A file whose layout does not match, or whose weights are truncated or corrupted, is
+//! refused with a [`PolicyError`].
+
+use crate::config::Config;
+use crate::policy::network::{NetSpec, PolicyNet};
+use crate::policy::observation::OBS_LAYOUT_VERSION;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Marker of the sidecar format.
+pub const FORMAT: &str = "mpgdrive-policy";
+
+/// A policy file problem.
+#[derive(Debug, thiserror::Error)]
+pub enum PolicyError {
+    /// Reading or writing failed.
+    #[error("cannot access {path}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The sidecar is not valid JSON of the expected shape.
+    #[error("{path}: not an mpgdrive policy sidecar: {message}")]
+    Sidecar {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The policy was made for another observation layout or player count.
+    #[error("{path}: {message}")]
+    Mismatch {
+        /// The file.
+        path: PathBuf,
+        /// What does not match.
+        message: String,
+    },
+    /// The weights could not be read or do not fit the network.
+    #[error("{path}: unreadable or mismatched weights: {message}")]
+    Weights {
+        /// The file.
+        path: PathBuf,
+        /// libtorch's message.
+        message: String,
+    },
+}
+
+/// The JSON sidecar.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Sidecar {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Observation layout version ([`OBS_LAYOUT_VERSION`]).
+    pub obs_layout_version: u32,
+    /// Network sizes and scales.
+    pub net: NetSpec,
+    /// "mpg" (shared policy for every player) or "sarl" (ego only).
+    pub mode: String,
+    /// Training seed.
+    pub seed: u64,
+    /// Epochs trained.
+    pub epochs: usize,
+    /// The command line that produced the file.
+    pub command: String,
+    /// mpgdrive version.
+    pub code_version: String,
+    /// The full configuration used.
+    pub config: Config,
+    /// Final training metrics.
+    pub metrics: serde_json::Value,
+}
+
+/// The two file paths of a policy named by `base`: `base` itself may name either file
+/// (`.safetensors` or `.json`) or neither (then both extensions are appended).
+pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
+    let stem = match base.extension().and_then(|e| e.to_str()) {
+        Some("safetensors" | "json") => base.with_extension(""),
+        _ => base.to_path_buf(),
+    };
+    let with = |ext: &str| {
+        let mut name = stem.file_name().unwrap_or_default().to_os_string();
+        name.push(ext);
+        stem.with_file_name(name)
+    };
+    (with(".safetensors"), with(".json"))
+}
+
+fn tmp(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".tmp{}", std::process::id()));
+    path.with_file_name(name)
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PolicyError + '_ {
+    move |source| PolicyError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Writes `net` and `sidecar` atomically next to `base`.
+pub fn save(base: &Path, net: &PolicyNet, sidecar: &Sidecar) -> Result<(), PolicyError> {
+    let (weights, json) = paths(base);
+    if let Some(dir) = weights.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+    }
+    // tch chooses the format from the extension, so the temporary name keeps it.
+    let weights_tmp = tmp(&weights).with_extension("safetensors");
+    net.vs.save(&weights_tmp).map_err(|e| PolicyError::Weights {
+        path: weights.clone(),
+        message: e.to_string(),
+    })?;
+    let text = serde_json::to_string_pretty(sidecar).expect("a sidecar serialises");
+    std::fs::write(tmp(&json), text).map_err(io(&json))?;
+    std::fs::rename(&weights_tmp, &weights).map_err(io(&weights))?;
+    std::fs::rename(tmp(&json), &json).map_err(io(&json))?;
+    Ok(())
+}
+
+/// Reads a policy; `n_agents` is the player count it must serve.
+pub fn load(base: &Path, n_agents: usize) -> Result<(PolicyNet, Sidecar), PolicyError> {
+    let (weights, json) = paths(base);
+    let text = std::fs::read_to_string(&json).map_err(io(&json))?;
+    let sidecar: Sidecar = serde_json::from_str(&text).map_err(|e| PolicyError::Sidecar {
+        path: json.clone(),
+        message: e.to_string(),
+    })?;
+    let mismatch = |message: String| PolicyError::Mismatch {
+        path: json.clone(),
+        message,
+    };
+    if sidecar.format != FORMAT {
+        return Err(mismatch(format!(
+            "format {:?}, expected {FORMAT:?}",
+            sidecar.format
+        )));
+    }
+    if sidecar.obs_layout_version != OBS_LAYOUT_VERSION {
+        return Err(mismatch(format!(
+            "observation layout version {}, this mpgdrive uses {OBS_LAYOUT_VERSION}",
+            sidecar.obs_layout_version
+        )));
+    }
+    let expected = NetSpec::new(n_agents, sidecar.net.hidden, sidecar.net.action_scale);
+    if sidecar.net != expected {
+        return Err(mismatch(format!(
+            "made for {} players (observation width {}), the configuration has {n_agents}",
+            sidecar.net.n_agents, sidecar.net.obs_dim
+        )));
+    }
+    let mut net = PolicyNet::new(sidecar.net.clone());
+    net.vs.load(&weights).map_err(|e| PolicyError::Weights {
+        path: weights.clone(),
+        message: e.to_string(),
+    })?;
+    Ok((net, sidecar))
+}

@@ -1,0 +1,99 @@
+//! The shared policy network (Section IV): input layer, two fully connected hidden layers with
+//! Leaky ReLU, output layer with tanh scaled to `[-g, g]`. One network serves every player
+//! (parameter sharing); the one-hot agent index in the observation tells players apart.
+//!
+//! Inputs are normalised by fixed scales ([`OBS_SCALE`]), stored with the policy file.
+
+use crate::policy::observation::{BatchPolicy, N_FEATURES};
+use tch::{Device, Kind, Tensor, nn, nn::Module};
+
+/// Scale of each Table I feature (the one-hot index is not scaled): distances by 100 m,
+/// speeds by 30 m/s, relative speeds by 10 m/s, flags by 1.
+pub const OBS_SCALE: [f32; N_FEATURES] = [0.01, 1.0 / 30.0, 0.01, 0.1, 1.0, 0.01, 0.1, 1.0, 1.0];
+
+/// Sizes and scales of a network, everything needed to rebuild it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NetSpec {
+    /// Number of players `N` (length of the one-hot index).
+    pub n_agents: usize,
+    /// Observation width, `9 + N`.
+    pub obs_dim: usize,
+    /// Width of each hidden layer.
+    pub hidden: usize,
+    /// Action scale `g` (m/s^2).
+    pub action_scale: f64,
+    /// Input scales, one per observation entry.
+    pub obs_scale: Vec<f32>,
+}
+
+impl NetSpec {
+    /// The spec for `n_agents` players.
+    pub fn new(n_agents: usize, hidden: usize, action_scale: f64) -> Self {
+        let mut obs_scale = OBS_SCALE.to_vec();
+        obs_scale.resize(N_FEATURES + n_agents, 1.0);
+        NetSpec {
+            n_agents,
+            obs_dim: N_FEATURES + n_agents,
+            hidden,
+            action_scale,
+            obs_scale,
+        }
+    }
+}
+
+/// The network and its parameters.
+#[derive(Debug)]
+pub struct PolicyNet {
+    /// Parameters (the variable names are those stored in the safetensors file).
+    pub vs: nn::VarStore,
+    /// Sizes and scales.
+    pub spec: NetSpec,
+    layers: [nn::Linear; 3],
+    scale: Tensor,
+}
+
+impl PolicyNet {
+    /// A freshly initialised network (libtorch's default initialisation, seeded by
+    /// `tch::manual_seed` by the caller).
+    pub fn new(spec: NetSpec) -> Self {
+        let vs = nn::VarStore::new(Device::Cpu);
+        let root = vs.root();
+        let (d, h) = (spec.obs_dim as i64, spec.hidden as i64);
+        let layers = [
+            nn::linear(&root / "hidden1", d, h, Default::default()),
+            nn::linear(&root / "hidden2", h, h, Default::default()),
+            nn::linear(&root / "output", h, 1, Default::default()),
+        ];
+        let scale = Tensor::from_slice(&spec.obs_scale);
+        PolicyNet {
+            vs,
+            spec,
+            layers,
+            scale,
+        }
+    }
+
+    /// Actions `[..]` for observations `[.., obs_dim]` (raw SI values; normalised here).
+    pub fn forward(&self, obs: &Tensor) -> Tensor {
+        let x = obs.to_kind(Kind::Float) * &self.scale;
+        let x = self.layers[0].forward(&x).leaky_relu();
+        let x = self.layers[1].forward(&x).leaky_relu();
+        self.layers[2].forward(&x).tanh().squeeze_dim(-1) * self.spec.action_scale
+    }
+
+    /// An independent copy (for another thread).
+    pub fn try_clone(&self) -> Result<Self, tch::TchError> {
+        let mut copy = PolicyNet::new(self.spec.clone());
+        copy.vs.copy(&self.vs)?;
+        Ok(copy)
+    }
+}
+
+impl BatchPolicy for PolicyNet {
+    fn act(&mut self, obs: &[f32], rows: usize, out: &mut [f32]) {
+        let input = Tensor::from_slice(obs).reshape([rows as i64, self.spec.obs_dim as i64]);
+        let actions = tch::no_grad(|| self.forward(&input));
+        let values = Vec::<f32>::try_from(actions).expect("a CPU float tensor");
+        out[..rows].copy_from_slice(&values);
+    }
+}

@@ -1,0 +1,191 @@
+//! Training on the smoke setting, policy files, checkpoints and resume.
+
+mod common;
+
+use common::smoke;
+use mpgdrive::policy::file::{self, PolicyError};
+use mpgdrive::policy::{NetSpec, PolicyNet};
+use mpgdrive::train::{Mode, TrainRun, curves, train};
+use std::path::PathBuf;
+use tch::Tensor;
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-train-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// Mean probe objective of the first and of the last five epochs (single epochs are noisy).
+fn first_last(records: &[curves::EpochRecord]) -> (f64, f64) {
+    let mean = |r: &[curves::EpochRecord]| r.iter().map(|x| x.probe_objective).sum::<f64>() / r.len() as f64;
+    (mean(&records[..5]), mean(&records[records.len() - 5..]))
+}
+
+fn run(mode: Mode, dir: &std::path::Path) -> TrainRun {
+    TrainRun {
+        mode,
+        seed: 3,
+        out: dir.join("seed3"),
+        resume: false,
+        command: "test".into(),
+    }
+}
+
+#[test]
+fn mpg_training_improves_the_potential() {
+    let config = smoke();
+    let dir = out_dir("mpg");
+    let records = train(&config, &run(Mode::Mpg, &dir), &mut |_| {}).unwrap();
+    assert_eq!(records.len(), config.train.epochs);
+    let (first, last) = first_last(&records);
+    assert!(
+        last > first + 0.2 * first.abs(),
+        "probe potential {first} -> {last}"
+    );
+    // The curves on disk are what was returned (printed with full precision but wall time).
+    let back = curves::read(&dir.join("seed3.curves.csv")).unwrap();
+    assert_eq!(back.len(), records.len());
+    assert_eq!(back[4].probe_objective, records[4].probe_objective);
+    // The finished policy exists, the checkpoint is gone.
+    assert!(dir.join("seed3.safetensors").exists() && dir.join("seed3.json").exists());
+    assert!(!dir.join("seed3.ckpt.json").exists());
+}
+
+#[test]
+fn sarl_training_improves_the_ego_return() {
+    let config = smoke();
+    let dir = out_dir("sarl");
+    // The ego needs time to matter: 10 s instead of the smoke setting's 3 s.
+    let mut config = config;
+    config.sim.horizon = 10.0;
+    config.train.epochs = 20;
+    config.train.learning_rate = 0.003;
+    let records = train(&config, &run(Mode::Sarl, &dir), &mut |_| {}).unwrap();
+    let (first, last) = first_last(&records);
+    assert!(last > first, "probe ego return {first} -> {last}");
+    let (_, side) = file::load(&dir.join("seed3"), 9).unwrap();
+    assert_eq!(
+        (side.mode.as_str(), side.seed, side.epochs),
+        ("sarl", 3, config.train.epochs)
+    );
+}
+
+#[test]
+fn training_is_reproducible_for_a_seed() {
+    let config = smoke();
+    let a = train(&config, &run(Mode::Mpg, &out_dir("rep-a")), &mut |_| {}).unwrap();
+    let b = train(&config, &run(Mode::Mpg, &out_dir("rep-b")), &mut |_| {}).unwrap();
+    let key = |r: &Vec<curves::EpochRecord>| {
+        r.iter()
+            .map(|x| (x.train_objective, x.probe_objective))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(key(&a), key(&b));
+}
+
+#[test]
+fn resume_runs_only_the_epochs_after_the_checkpoint() {
+    let mut config = smoke();
+    config.train.epochs = 7;
+    let dir = out_dir("resume");
+    let run7 = run(Mode::Mpg, &dir);
+    let full = train(&config, &run7, &mut |_| {}).unwrap();
+    // Emulate a run interrupted after epoch 5: a checkpoint saying epoch 5 next to the curves.
+    let (net, mut side) = file::load(&dir.join("seed3"), 9).unwrap();
+    side.epochs = 5;
+    file::save(&dir.join("seed3.ckpt"), &net, &side).unwrap();
+    let mut epochs_run = Vec::new();
+    let resumed = train(
+        &config,
+        &TrainRun {
+            resume: true,
+            ..run7.clone()
+        },
+        &mut |r| epochs_run.push(r.epoch),
+    )
+    .unwrap();
+    assert_eq!(epochs_run, vec![6, 7], "only the missing epochs run");
+    let key = |r: &[curves::EpochRecord]| {
+        r.iter()
+            .map(|x| (x.epoch, x.train_objective, x.probe_objective))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        key(&resumed[..5]),
+        key(&full[..5]),
+        "the first five rows come from the curves file"
+    );
+    assert!(
+        !dir.join("seed3.ckpt.json").exists(),
+        "the finished policy supersedes the checkpoint"
+    );
+    // A checkpoint made with another configuration is refused.
+    file::save(&dir.join("seed3.ckpt"), &net, &side).unwrap();
+    let mut other = config.clone();
+    other.train.learning_rate = 0.5;
+    let err = train(&other, &TrainRun { resume: true, ..run7 }, &mut |_| {}).unwrap_err();
+    assert!(err.to_string().contains("another run"), "{err}");
+}
+
+fn sample_net() -> PolicyNet {
+    tch::manual_seed(0);
+    PolicyNet::new(NetSpec::new(9, 8, 9.81))
+}
+
+fn sidecar_for(net: &PolicyNet) -> file::Sidecar {
+    file::Sidecar {
+        format: file::FORMAT.into(),
+        obs_layout_version: mpgdrive::policy::observation::OBS_LAYOUT_VERSION,
+        net: net.spec.clone(),
+        mode: "mpg".into(),
+        seed: 0,
+        epochs: 0,
+        command: "test".into(),
+        code_version: mpgdrive::VERSION.into(),
+        config: smoke(),
+        metrics: serde_json::Value::Null,
+    }
+}
+
+#[test]
+fn policy_file_round_trip_gives_the_same_actions() {
+    let dir = out_dir("roundtrip");
+    let net = sample_net();
+    file::save(&dir.join("p"), &net, &sidecar_for(&net)).unwrap();
+    let (back, side) = file::load(&dir.join("p.json"), 9).unwrap();
+    assert_eq!(side, sidecar_for(&net));
+    let obs = Tensor::rand([5, 18], (tch::Kind::Float, tch::Device::Cpu)) * 50.0;
+    let (a, b) = (net.forward(&obs), back.forward(&obs));
+    assert_eq!(Vec::<f32>::try_from(a).unwrap(), Vec::<f32>::try_from(b).unwrap());
+    // Outputs stay inside [-g, g].
+    let big = net.forward(&(obs * 1e4));
+    assert!(big.abs().max().double_value(&[]) <= 9.81 + 1e-5);
+}
+
+#[test]
+fn mismatched_truncated_or_corrupted_policy_files_are_refused() {
+    let dir = out_dir("refuse");
+    let net = sample_net();
+    let base = dir.join("p");
+    file::save(&base, &net, &sidecar_for(&net)).unwrap();
+    // Another player count.
+    assert!(matches!(file::load(&base, 5), Err(PolicyError::Mismatch { .. })));
+    // Another observation layout.
+    let mut side = sidecar_for(&net);
+    side.obs_layout_version = 99;
+    std::fs::write(dir.join("p.json"), serde_json::to_string(&side).unwrap()).unwrap();
+    let err = file::load(&base, 9).unwrap_err();
+    assert!(err.to_string().contains("observation layout version 99"), "{err}");
+    // Truncated weights.
+    file::save(&base, &net, &sidecar_for(&net)).unwrap();
+    let weights = std::fs::read(dir.join("p.safetensors")).unwrap();
+    std::fs::write(dir.join("p.safetensors"), &weights[..weights.len() / 2]).unwrap();
+    assert!(matches!(file::load(&base, 9), Err(PolicyError::Weights { .. })));
+    // Weights of another network size under a matching sidecar.
+    let other = PolicyNet::new(NetSpec::new(9, 4, 9.81));
+    other.vs.save(dir.join("p.safetensors")).unwrap();
+    assert!(matches!(file::load(&base, 9), Err(PolicyError::Weights { .. })));
+    // A sidecar that is not JSON.
+    std::fs::write(dir.join("p.json"), "{not json").unwrap();
+    assert!(matches!(file::load(&base, 9), Err(PolicyError::Sidecar { .. })));
+}
