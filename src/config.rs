@@ -88,6 +88,9 @@ pub struct SimConfig {
     pub tau_s: f64,
     /// End the episode for everyone at the first collision.
     pub terminate_on_collision: bool,
+    /// With termination: charge each player its collision-step reward for every remaining
+    /// step (an absorbing crash state), so that crashing early never pays.
+    pub absorbing_collision: bool,
 }
 
 /// Reward terms of Section V-iii and their weights.

@@ -4,6 +4,7 @@
 //! [`policy`] -> [`eval`]. See `DESIGN.md` and the paper (Yan and Liu, "Markov Potential Game
 //! and Multi-Agent Reinforcement Learning for Autonomous Driving") for the equations.
 
+pub mod atomic;
 pub mod config;
 pub mod eval;
 pub mod game;

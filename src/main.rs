@@ -4,13 +4,14 @@
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use mpgdrive::config::{Config, ConfigError};
+use mpgdrive::eval::study::{EvalError, Surrounding, evaluate, load_policies};
 use mpgdrive::eval::{EpisodeMetrics, Summary};
 use mpgdrive::game::PaperReward;
 use mpgdrive::game::mpg_check::{CheckSettings, check_mpg, evaluations};
 use mpgdrive::sim::Driver;
 use mpgdrive::sim::rollout::{DriverActor, RolloutOptions, rollout};
 use mpgdrive::sim::sampler::sample_scenes;
-use mpgdrive::train::{Mode, TrainRun, train};
+use mpgdrive::train::{Mode, TrainError, TrainRun, train};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -70,6 +71,24 @@ enum Command {
         #[arg(long)]
         resume: bool,
     },
+    /// The statistical study (Tables II and III): the ego on a policy (or one per seed) against
+    /// NE, IDM and constant-speed surrounding players.
+    Eval {
+        #[command(flatten)]
+        common: Common,
+        /// A policy (BASE, BASE.json or BASE.safetensors) or a directory of one per seed.
+        #[arg(long)]
+        policy: PathBuf,
+        /// Surrounding players, comma-separated: ne, idm, const.
+        #[arg(long, value_enum, value_delimiter = ',', default_value = "ne,idm,const")]
+        surrounding: Vec<SurroundingArg>,
+        /// Also write every episode's metrics to this CSV file.
+        #[arg(long)]
+        episodes: Option<PathBuf>,
+        /// Print JSON instead of Markdown.
+        #[arg(long)]
+        json: bool,
+    },
     /// Check Definition 3 numerically: Delta J_i against Delta Phi for unilateral deviations.
     CheckMpg {
         #[command(flatten)]
@@ -93,6 +112,13 @@ enum Command {
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
+enum SurroundingArg {
+    Ne,
+    Idm,
+    Const,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
 enum ModeArg {
     Mpg,
     Sarl,
@@ -113,7 +139,13 @@ fn main() -> ExitCode {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            if e.downcast_ref::<ConfigError>().is_some() || e.downcast_ref::<UsageMessage>().is_some() {
+            let bad_input = e.downcast_ref::<ConfigError>().is_some()
+                || e.downcast_ref::<UsageMessage>().is_some()
+                || matches!(
+                    e.downcast_ref::<EvalError>(),
+                    Some(EvalError::Policy(_) | EvalError::NoPolicy(_))
+                );
+            if bad_input {
                 ExitCode::from(2)
             } else {
                 ExitCode::from(1)
@@ -161,6 +193,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
             };
             let seeds = seeds.unwrap_or_else(|| config.eval.seeds.clone());
             let command = std::env::args().collect::<Vec<_>>().join(" ");
+            // Ctrl-C: finish the current epoch, write a checkpoint, exit 130.
+            let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+            let flag = stop.clone();
+            ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::SeqCst))
+                .context("installing the Ctrl-C handler")?;
             for seed in seeds {
                 let run = TrainRun {
                     mode,
@@ -176,11 +213,18 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     .context("progress bar template")?,
                 );
                 bar.set_prefix(format!("{} seed {seed}", mode.name()));
-                let records = train(&config, &run, &mut |r| {
+                let result = train(&config, &run, &stop, &mut |r| {
                     bar.set_message(format!("objective {:.1}", r.probe_objective));
                     bar.set_position(r.epoch as u64);
-                })?;
+                });
                 bar.finish_and_clear();
+                let records = match result {
+                    Err(e @ TrainError::Interrupted { .. }) => {
+                        eprintln!("{e}");
+                        return Ok(ExitCode::from(130));
+                    }
+                    other => other?,
+                };
                 if let Some(r) = records.last() {
                     println!(
                         "{} seed {seed}: {} epochs in {:.1} s, probe objective {:.2}, probe collisions {:.3}, failures {:.3} -> {}",
@@ -193,6 +237,46 @@ fn run(cli: Cli) -> Result<ExitCode> {
                         run.out.display()
                     );
                 }
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Eval {
+            common,
+            policy,
+            surrounding,
+            episodes,
+            json,
+        } => {
+            let (config, _, threads) = load(&common)?;
+            let policies = load_policies(&policy, config.n_agents())?;
+            let kinds: Vec<_> = surrounding
+                .iter()
+                .map(|s| match s {
+                    SurroundingArg::Ne => Surrounding::Ne,
+                    SurroundingArg::Idm => Surrounding::Idm,
+                    SurroundingArg::Const => Surrounding::Const,
+                })
+                .collect();
+            let start = Instant::now();
+            let study = evaluate(&config, &policies, &kinds, threads)?;
+            let wall = start.elapsed().as_secs_f64();
+            if let Some(path) = episodes {
+                mpgdrive::atomic::write(&path, study.episodes_csv())
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+            }
+            if json {
+                println!(
+                    "{}",
+                    serde_json::to_string_pretty(&study).context("serialising the study")?
+                );
+            } else {
+                println!("{}", study.markdown());
+                println!(
+                    "({} policies x {} kinds x {} scenarios in {wall:.2} s)",
+                    policies.len(),
+                    kinds.len(),
+                    config.eval.test_scenarios
+                );
             }
             Ok(ExitCode::SUCCESS)
         }

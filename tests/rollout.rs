@@ -46,7 +46,8 @@ fn same_seed_gives_identical_rollouts_whatever_the_thread_count() {
 
 #[test]
 fn returns_are_the_discounted_sums_of_the_recorded_rewards() {
-    let config = smoke();
+    let mut config = smoke();
+    config.sim.absorbing_collision = false;
     let scenes = sample_scenes(&config, 1, 0, 3);
     for o in rollout(&config, &opts(&config, 1), &scenes, || {
         DriverActor::new(&config, Driver::Idm, Driver::ConstSpeed)
@@ -89,13 +90,27 @@ fn a_collision_ends_the_episode_for_everyone() {
     config.scenario.n_followers = 0;
     config.sim.feasibility = false;
     let s = scene(vec![car(175.0, 10.0, true), car(183.0, 0.0, false)]);
-    let out = &constant_speed(&config, s);
+    let out = &constant_speed(&config, s.clone());
     // After step 4 the ego is at x = 180 (merged), 3 m behind the centre of a 5 m car: overlap.
     let c = out.collision.expect("collision");
     assert_eq!((c.step, c.a, c.b), (4, 0, 1));
     assert_eq!(out.steps, 5);
-    assert_eq!(out.trajectory.as_ref().unwrap().potential.len(), 5);
+    let phi = &out.trajectory.as_ref().unwrap().potential;
+    assert_eq!(phi.len(), 5);
     assert!(EpisodeMetrics::of(out).collision);
+    // Absorbing crash: steps 0..4 counted, then phi_4 charged for steps 5..29 of the 3 s horizon.
+    let g = config.sim.gamma;
+    let counted: f64 = (0..5).map(|k| g.powi(k) * phi[k as usize]).sum();
+    let tail: f64 = (5..30).map(|k| g.powi(k)).sum();
+    assert_abs_diff_eq!(
+        out.potential_return,
+        counted + tail * phi[4],
+        epsilon = 1e-9 * counted.abs()
+    );
+    // Plain termination counts only the steps up to the collision.
+    config.sim.absorbing_collision = false;
+    let plain = constant_speed(&config, s);
+    assert_abs_diff_eq!(plain.potential_return, counted, epsilon = 1e-9 * counted.abs());
 }
 
 #[test]

@@ -7,7 +7,10 @@ use mpgdrive::policy::file::{self, PolicyError};
 use mpgdrive::policy::{NetSpec, PolicyNet};
 use mpgdrive::train::{Mode, TrainRun, curves, train};
 use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
 use tch::Tensor;
+
+static NO_STOP: AtomicBool = AtomicBool::new(false);
 
 fn out_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("mpgdrive-train-{}-{name}", std::process::id()));
@@ -35,7 +38,7 @@ fn run(mode: Mode, dir: &std::path::Path) -> TrainRun {
 fn mpg_training_improves_the_potential() {
     let config = smoke();
     let dir = out_dir("mpg");
-    let records = train(&config, &run(Mode::Mpg, &dir), &mut |_| {}).unwrap();
+    let records = train(&config, &run(Mode::Mpg, &dir), &NO_STOP, &mut |_| {}).unwrap();
     assert_eq!(records.len(), config.train.epochs);
     let (first, last) = first_last(&records);
     assert!(
@@ -60,7 +63,7 @@ fn sarl_training_improves_the_ego_return() {
     config.sim.horizon = 10.0;
     config.train.epochs = 20;
     config.train.learning_rate = 0.003;
-    let records = train(&config, &run(Mode::Sarl, &dir), &mut |_| {}).unwrap();
+    let records = train(&config, &run(Mode::Sarl, &dir), &NO_STOP, &mut |_| {}).unwrap();
     let (first, last) = first_last(&records);
     assert!(last > first, "probe ego return {first} -> {last}");
     let (_, side) = file::load(&dir.join("seed3"), 9).unwrap();
@@ -73,8 +76,8 @@ fn sarl_training_improves_the_ego_return() {
 #[test]
 fn training_is_reproducible_for_a_seed() {
     let config = smoke();
-    let a = train(&config, &run(Mode::Mpg, &out_dir("rep-a")), &mut |_| {}).unwrap();
-    let b = train(&config, &run(Mode::Mpg, &out_dir("rep-b")), &mut |_| {}).unwrap();
+    let a = train(&config, &run(Mode::Mpg, &out_dir("rep-a")), &NO_STOP, &mut |_| {}).unwrap();
+    let b = train(&config, &run(Mode::Mpg, &out_dir("rep-b")), &NO_STOP, &mut |_| {}).unwrap();
     let key = |r: &Vec<curves::EpochRecord>| {
         r.iter()
             .map(|x| (x.train_objective, x.probe_objective))
@@ -89,7 +92,7 @@ fn resume_runs_only_the_epochs_after_the_checkpoint() {
     config.train.epochs = 7;
     let dir = out_dir("resume");
     let run7 = run(Mode::Mpg, &dir);
-    let full = train(&config, &run7, &mut |_| {}).unwrap();
+    let full = train(&config, &run7, &NO_STOP, &mut |_| {}).unwrap();
     // Emulate a run interrupted after epoch 5: a checkpoint saying epoch 5 next to the curves.
     let (net, mut side) = file::load(&dir.join("seed3"), 9).unwrap();
     side.epochs = 5;
@@ -101,6 +104,7 @@ fn resume_runs_only_the_epochs_after_the_checkpoint() {
             resume: true,
             ..run7.clone()
         },
+        &NO_STOP,
         &mut |r| epochs_run.push(r.epoch),
     )
     .unwrap();
@@ -123,8 +127,41 @@ fn resume_runs_only_the_epochs_after_the_checkpoint() {
     file::save(&dir.join("seed3.ckpt"), &net, &side).unwrap();
     let mut other = config.clone();
     other.train.learning_rate = 0.5;
-    let err = train(&other, &TrainRun { resume: true, ..run7 }, &mut |_| {}).unwrap_err();
+    let err = train(&other, &TrainRun { resume: true, ..run7 }, &NO_STOP, &mut |_| {}).unwrap_err();
     assert!(err.to_string().contains("another run"), "{err}");
+}
+
+#[test]
+fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
+    let config = smoke();
+    let dir = out_dir("stop");
+    let stop = AtomicBool::new(false);
+    let mut seen = Vec::new();
+    let err = train(&config, &run(Mode::Mpg, &dir), &stop, &mut |r| {
+        seen.push(r.epoch);
+        if r.epoch == 3 {
+            stop.store(true, std::sync::atomic::Ordering::SeqCst); // as the Ctrl-C handler does
+        }
+    })
+    .unwrap_err();
+    assert!(
+        matches!(err, mpgdrive::train::TrainError::Interrupted { epoch: 3, .. }),
+        "{err}"
+    );
+    assert_eq!(seen, vec![1, 2, 3]);
+    let (_, side) = file::load(&dir.join("seed3.ckpt"), 9).unwrap();
+    assert_eq!(side.epochs, 3);
+    let resumed = train(
+        &config,
+        &TrainRun {
+            resume: true,
+            ..run(Mode::Mpg, &dir)
+        },
+        &NO_STOP,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(resumed.len(), config.train.epochs);
 }
 
 fn sample_net() -> PolicyNet {

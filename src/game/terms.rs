@@ -36,11 +36,15 @@ pub fn time_to_conflict<T: Num>(x: &T, v: &T, x_c: f64, eps: f64) -> T {
 }
 
 /// Different-lane time-gap-to-conflict-point term, eq. (28):
-/// `-1 / (sqrt(T_i T_j) (T_i - T_j)^2 + eps)`.
+/// `-1 / (sqrt(T_i T_j) (T_i - T_j)^2 + eps)`, with `T_i T_j + 1e-12` under the root.
 pub fn conflict_time_gap<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
     let t_i = time_to_conflict(x_i, v_i, x_c, eps);
     let t_j = time_to_conflict(x_j, v_j, x_c, eps);
+    // 1e-12 under the root keeps its gradient finite where a time is 0 (a vehicle at x_c, or
+    // the i = j diagonal of the tensor engine, masked by a product): sqrt'(0) is infinite and
+    // 0 * inf is NaN. It moves the value by less than 1e-12 relative.
     t_i.mul(&t_j)
+        .add_c(1e-12)
         .sqrt()
         .mul(&t_i.sub(&t_j).square())
         .add_c(eps)

@@ -93,12 +93,6 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
     (with(".safetensors"), with(".json"))
 }
 
-fn tmp(path: &Path) -> PathBuf {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(format!(".tmp{}", std::process::id()));
-    path.with_file_name(name)
-}
-
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PolicyError + '_ {
     move |source| PolicyError::Io {
         path: path.to_path_buf(),
@@ -112,16 +106,15 @@ pub fn save(base: &Path, net: &PolicyNet, sidecar: &Sidecar) -> Result<(), Polic
     if let Some(dir) = weights.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
     }
-    // tch chooses the format from the extension, so the temporary name keeps it.
-    let weights_tmp = tmp(&weights).with_extension("safetensors");
+    // tch chooses the format from the extension, which the temporary name keeps.
+    let weights_tmp = crate::atomic::temporary(&weights);
     net.vs.save(&weights_tmp).map_err(|e| PolicyError::Weights {
         path: weights.clone(),
         message: e.to_string(),
     })?;
     let text = serde_json::to_string_pretty(sidecar).expect("a sidecar serialises");
-    std::fs::write(tmp(&json), text).map_err(io(&json))?;
     std::fs::rename(&weights_tmp, &weights).map_err(io(&weights))?;
-    std::fs::rename(tmp(&json), &json).map_err(io(&json))?;
+    crate::atomic::write(&json, text).map_err(io(&json))?;
     Ok(())
 }
 

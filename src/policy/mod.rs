@@ -1,5 +1,6 @@
 //! Policies: the Table I observation builder, the shared network and policy files.
 
+pub mod drive;
 pub mod file;
 pub mod network;
 pub mod observation;

@@ -9,7 +9,9 @@
 //! 5. eq. (1) with zero steering; a ramp vehicle whose `x` reaches `x_c` joins the target lane
 //!    (its lateral position follows the lane geometry);
 //! 6. collisions between bounding boxes at `s_{t+1}`: the first one ends the episode for
-//!    everyone (when enabled), after the rewards of step `t` are counted.
+//!    everyone (when enabled), after the rewards of step `t` are counted; with
+//!    `sim.absorbing_collision` the step-`t` rewards are also charged for every remaining step
+//!    ([`tail_weight`]).
 //!
 //! Scenarios are split into contiguous chunks, one worker thread per chunk, each with its own
 //! actor; the results do not depend on the number of threads.
@@ -391,6 +393,13 @@ fn run_chunk(
                     first_collision(scene, veh.length, veh.width).map(|(a, b)| Collision { step, a, b });
                 if out.collision.is_some() && opts.terminate_on_collision {
                     alive[b] = false;
+                    if config.sim.absorbing_collision {
+                        let tail = tail_weight(config.sim.gamma, step, opts.steps);
+                        for (ret, r) in out.returns.iter_mut().zip(&rewards.reward) {
+                            *ret += tail * r;
+                        }
+                        out.potential_return += tail * rewards.potential;
+                    }
                 }
             }
             if let Some(t) = out.trajectory.as_mut() {
@@ -408,6 +417,14 @@ fn run_chunk(
         out.final_scene = scene;
     }
     outcomes
+}
+
+/// Weight of a reward held from step `step + 1` to the last step `steps - 1`:
+/// `sum_{k = step + 1}^{steps - 1} gamma^k`. With `sim.absorbing_collision`, a collision at
+/// `step` charges every player its reward of that step this many more times (an absorbing
+/// crash state), so that ending an episode early never raises a return of negative rewards.
+pub fn tail_weight(gamma: f64, step: usize, steps: usize) -> f64 {
+    (step + 1..steps).map(|k| gamma.powi(k as i32)).sum()
 }
 
 /// The first overlapping pair `(a, b)`, `a < b`, in index order.

@@ -12,7 +12,7 @@ use crate::num::Num;
 use crate::sim::dynamics::{Axles, Kinematics, bicycle_step};
 use crate::sim::idm::idm_accel;
 use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::first_collision;
+use crate::sim::rollout::{first_collision, tail_weight};
 use crate::sim::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
 use crate::sim::state::{Scene, Vehicle};
 use tch::{Kind, Tensor};
@@ -244,7 +244,8 @@ pub struct TensorReturns {
 
 /// Runs `steps` steps; `act` gives the raw actions of every player from the state and its
 /// neighbours. An episode stops counting rewards after its first collision when
-/// `terminate_on_collision`.
+/// `terminate_on_collision` (charging the collision step's rewards for the remaining steps
+/// with `sim.absorbing_collision`, as the scalar engine does).
 // `a = a + b` on purpose: tch's `+=` is an in-place op, which autograd handles less freely.
 #[allow(clippy::assign_op_pattern)]
 pub fn rollout(
@@ -268,15 +269,22 @@ pub fn rollout(
         let u = apply_limits(config, &batch, &nb, &raw, feasibility);
         let (r, phi) = rewards(config, &batch, &u);
         let live = Tensor::from_slice(&alive).to_kind(kind);
-        returns = returns + r * live.unsqueeze(1) * discount;
-        potential = potential + phi * &live * discount;
+        returns = returns + &r * live.unsqueeze(1) * discount;
+        potential = potential + &phi * &live * discount;
         batch = advance(config, &batch, &u);
         if terminate_on_collision {
             let v = &config.vehicle;
-            for (a, scene) in alive.iter_mut().zip(batch.to_scenes()) {
-                if first_collision(&scene, v.length, v.width).is_some() {
-                    *a = 0.0;
+            let mut crashed = vec![0.0f64; alive.len()];
+            for ((a, c), scene) in alive.iter_mut().zip(&mut crashed).zip(batch.to_scenes()) {
+                if *a > 0.0 && first_collision(&scene, v.length, v.width).is_some() {
+                    (*a, *c) = (0.0, 1.0);
                 }
+            }
+            if config.sim.absorbing_collision && crashed.contains(&1.0) {
+                let tail =
+                    Tensor::from_slice(&crashed).to_kind(kind) * tail_weight(config.sim.gamma, step, steps);
+                returns = returns + &r * tail.unsqueeze(1);
+                potential = potential + &phi * tail;
             }
         }
         discount *= config.sim.gamma;

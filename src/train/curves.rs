@@ -41,9 +41,7 @@ pub fn write(path: &Path, records: &[EpochRecord]) -> std::io::Result<()> {
             r.wall_seconds
         ));
     }
-    let tmp = path.with_extension("csv.tmp");
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(tmp, path)
+    crate::atomic::write(path, text)
 }
 
 /// Reads curves written by [`write`].

@@ -14,17 +14,18 @@ pub mod curves;
 
 use crate::config::Config;
 use crate::eval::EpisodeMetrics;
+use crate::policy::drive::policy_rollout;
 use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::network::{NetSpec, PolicyNet};
-use crate::policy::observation::{OBS_LAYOUT_VERSION, PolicyActor, obs_dim, observe, tensor_observations};
+use crate::policy::observation::{OBS_LAYOUT_VERSION, obs_dim, observe, tensor_observations};
 use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::{Driver, EpisodeOutcome, RolloutOptions, rollout};
+use crate::sim::rollout::{Driver, EpisodeOutcome};
 use crate::sim::sampler::{Purpose, purpose_seed, sample_scenes};
 use crate::sim::state::Scene;
 use crate::sim::tensor::{self, idm_actions};
 use curves::EpochRecord;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 use tch::{Kind, Tensor, nn::OptimizerConfig};
 
@@ -69,6 +70,24 @@ pub enum TrainError {
         path: PathBuf,
         /// What differs.
         message: String,
+    },
+    /// Stopped by a request (Ctrl-C); a checkpoint of the last finished epoch was written.
+    #[error("interrupted after epoch {epoch}; checkpoint {checkpoint} written, continue with --resume")]
+    Interrupted {
+        /// Last finished epoch.
+        epoch: usize,
+        /// The checkpoint base path.
+        checkpoint: PathBuf,
+    },
+    /// The objective stopped being a finite number.
+    #[error(
+        "training diverged at epoch {epoch}: the objective is {value}; lower train.learning_rate or train.grad_clip"
+    )]
+    Diverged {
+        /// The epoch.
+        epoch: usize,
+        /// The objective's value.
+        value: f64,
     },
     /// libtorch failed.
     #[error("libtorch: {0}")]
@@ -131,35 +150,6 @@ fn tensor_actions(
     }
 }
 
-/// Scalar-engine rollouts of `scenes` with the network driving the players of `mode`.
-pub fn policy_rollout(
-    config: &Config,
-    net: &PolicyNet,
-    mode: Mode,
-    others: Driver,
-    scenes: &[Scene],
-    threads: usize,
-) -> Result<Vec<EpisodeOutcome>, tch::TchError> {
-    let threads = threads.clamp(1, scenes.len().max(1));
-    let pool = Mutex::new(
-        (0..threads)
-            .map(|_| net.try_clone())
-            .collect::<Result<Vec<_>, _>>()?,
-    );
-    let opts = RolloutOptions {
-        threads,
-        ..RolloutOptions::from_config(config)
-    };
-    Ok(rollout(config, &opts, scenes, || {
-        let copy = pool
-            .lock()
-            .expect("pool lock")
-            .pop()
-            .expect("one network per thread");
-        PolicyActor::new(config, copy, others, mode == Mode::Mpg)
-    }))
-}
-
 /// Actions of every player at the probe initial states (for the action-difference curve).
 fn probe_actions(config: &Config, net: &PolicyNet, probe: &[Scene]) -> Tensor {
     let n = config.n_agents();
@@ -211,9 +201,13 @@ fn sidecar(
 }
 
 /// Trains one policy; `on_epoch` sees every epoch's record. Returns the curves.
+///
+/// When `stop` becomes true, training ends after the current epoch with a checkpoint and
+/// [`TrainError::Interrupted`].
 pub fn train(
     config: &Config,
     run: &TrainRun,
+    stop: &AtomicBool,
     on_epoch: &mut dyn FnMut(&EpochRecord),
 ) -> Result<Vec<EpochRecord>, TrainError> {
     let t = &config.train;
@@ -271,10 +265,35 @@ pub fn train(
             Mode::Mpg => out.potential.mean(Kind::Float),
             Mode::Sarl => out.returns.select(1, 0).mean(Kind::Float),
         };
-        opt.backward_step_clip_norm(&(-&objective_t), t.grad_clip);
         let train_objective = objective_t.double_value(&[]);
+        if !train_objective.is_finite() {
+            return Err(TrainError::Diverged {
+                epoch: epoch + 1,
+                value: train_objective,
+            });
+        }
+        opt.backward_step_clip_norm(&(-&objective_t), t.grad_clip);
+        // A NaN gradient would poison the parameters without changing this epoch's objective.
+        let finite = net
+            .vs
+            .trainable_variables()
+            .iter()
+            .all(|p| p.isfinite().all().int64_value(&[]) == 1);
+        if !finite {
+            return Err(TrainError::Diverged {
+                epoch: epoch + 1,
+                value: f64::NAN,
+            });
+        }
 
-        let outcomes = policy_rollout(config, &net, run.mode, Driver::Idm, &probe, t.threads)?;
+        let outcomes = policy_rollout(
+            config,
+            &net,
+            run.mode == Mode::Mpg,
+            Driver::Idm,
+            &probe,
+            t.threads,
+        )?;
         let m = outcomes.len() as f64;
         let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
         let actions = probe_actions(config, &net, &probe);
@@ -293,7 +312,8 @@ pub fn train(
         previous = actions;
         on_epoch(&record);
         records.push(record);
-        if (epoch + 1) % t.checkpoint_every == 0 && epoch + 1 < t.epochs {
+        let interrupted = stop.load(Ordering::SeqCst);
+        if ((epoch + 1) % t.checkpoint_every == 0 || interrupted) && epoch + 1 < t.epochs {
             curves::write(&curves, &records).map_err(|source| TrainError::Io {
                 path: curves.clone(),
                 source,
@@ -303,6 +323,12 @@ pub fn train(
                 &net,
                 &sidecar(config, run, &net, epoch + 1, serde_json::json!(records.last())),
             )?;
+            if interrupted {
+                return Err(TrainError::Interrupted {
+                    epoch: epoch + 1,
+                    checkpoint: ckpt,
+                });
+            }
         }
     }
     curves::write(&curves, &records).map_err(|source| TrainError::Io {

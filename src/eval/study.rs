@@ -1,0 +1,289 @@
+//! The statistical study (Tables II and III): a policy, or one per seed, drives the ego over
+//! `eval.test_scenarios` test initial states per seed (drawn from the seed's test stream,
+//! disjoint from training and probe states), with the surrounding players driven by the same
+//! shared policy (NE), IDM or constant speed. Counts are averaged over seeds, so rates can be
+//! fractional (15.4/500).
+
+use crate::config::Config;
+use crate::eval::metrics::{EpisodeMetrics, Summary};
+use crate::policy::drive::policy_rollout;
+use crate::policy::file::{self, PolicyError, Sidecar};
+use crate::policy::network::PolicyNet;
+use crate::sim::rollout::Driver;
+use crate::sim::sampler::{Purpose, purpose_seed, sample_scenes};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// How the surrounding players drive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Surrounding {
+    /// The same shared policy as the ego (the Nash-equilibrium policies).
+    Ne,
+    /// Intelligent Driver Model.
+    Idm,
+    /// Constant speed.
+    Const,
+}
+
+impl Surrounding {
+    /// Column title as in the paper's tables.
+    pub fn title(self) -> &'static str {
+        match self {
+            Surrounding::Ne => "NE",
+            Surrounding::Idm => "IDM",
+            Surrounding::Const => "Constant speed",
+        }
+    }
+}
+
+/// An evaluation problem.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// A policy file is missing, mismatched or damaged.
+    #[error(transparent)]
+    Policy(#[from] PolicyError),
+    /// The policy directory holds no policy.
+    #[error("{0}: no policy (*.json with its .safetensors) found")]
+    NoPolicy(PathBuf),
+    /// The directory could not be listed.
+    #[error("cannot list {path}")]
+    List {
+        /// The directory.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// libtorch failed.
+    #[error("libtorch: {0}")]
+    Torch(#[from] tch::TchError),
+}
+
+/// Loads a policy file, or every policy of a directory (checkpoints excluded), sorted by seed.
+pub fn load_policies(path: &Path, n_agents: usize) -> Result<Vec<(PolicyNet, Sidecar)>, EvalError> {
+    if !path.is_dir() {
+        return Ok(vec![file::load(path, n_agents)?]);
+    }
+    let entries = std::fs::read_dir(path).map_err(|source| EvalError::List {
+        path: path.into(),
+        source,
+    })?;
+    let mut sidecars: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension().is_some_and(|e| e == "json") && !p.to_string_lossy().ends_with(".ckpt.json")
+        })
+        .collect();
+    sidecars.sort();
+    let mut policies = sidecars
+        .iter()
+        .map(|p| file::load(p, n_agents))
+        .collect::<Result<Vec<_>, _>>()?;
+    if policies.is_empty() {
+        return Err(EvalError::NoPolicy(path.into()));
+    }
+    policies.sort_by_key(|(_, side)| side.seed);
+    Ok(policies)
+}
+
+/// One evaluated episode.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EpisodeRow {
+    /// The policy's training seed.
+    pub seed: u64,
+    /// Surrounding players.
+    pub surrounding: Surrounding,
+    /// Test scenario index.
+    pub scenario: usize,
+    /// Its metrics.
+    pub metrics: EpisodeMetrics,
+}
+
+/// Results for one kind of surrounding players.
+#[derive(Debug, Clone, Serialize)]
+pub struct Column {
+    /// Surrounding players.
+    pub surrounding: Surrounding,
+    /// Per policy seed.
+    pub per_seed: Vec<(u64, Summary)>,
+    /// Averaged over seeds (counts may be fractional).
+    pub mean: MeanSummary,
+}
+
+/// A [`Summary`] averaged over seeds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MeanSummary {
+    /// Scenarios per seed.
+    pub episodes: usize,
+    /// Mean ego collisions per seed.
+    pub collisions: f64,
+    /// Mean failures per seed.
+    pub failures: f64,
+    /// Mean minimum distance (m).
+    pub min_distance: f64,
+    /// Mean ego speed (m/s).
+    pub mean_speed: f64,
+    /// Mean acceleration magnitude (m/s^2).
+    pub mean_abs_accel: f64,
+    /// Mean jerk magnitude (m/s^3).
+    pub mean_abs_jerk: f64,
+}
+
+fn mean_over_seeds(per_seed: &[(u64, Summary)]) -> MeanSummary {
+    let k = per_seed.len() as f64;
+    let avg = |f: fn(&Summary) -> f64| per_seed.iter().map(|(_, s)| f(s)).sum::<f64>() / k;
+    MeanSummary {
+        episodes: per_seed[0].1.episodes,
+        collisions: avg(|s| s.collisions as f64),
+        failures: avg(|s| s.failures as f64),
+        min_distance: avg(|s| s.min_distance),
+        mean_speed: avg(|s| s.mean_speed),
+        mean_abs_accel: avg(|s| s.mean_abs_accel),
+        mean_abs_jerk: avg(|s| s.mean_abs_jerk),
+    }
+}
+
+/// The whole study.
+#[derive(Debug, Clone, Serialize)]
+pub struct Study {
+    /// "mpg" or "sarl" (from the policy files).
+    pub mode: String,
+    /// Policy seeds.
+    pub seeds: Vec<u64>,
+    /// One column per kind of surrounding players.
+    pub columns: Vec<Column>,
+    /// Every episode.
+    #[serde(skip)]
+    pub episodes: Vec<EpisodeRow>,
+}
+
+/// Runs the study.
+pub fn evaluate(
+    config: &Config,
+    policies: &[(PolicyNet, Sidecar)],
+    surroundings: &[Surrounding],
+    threads: usize,
+) -> Result<Study, EvalError> {
+    let mut columns = Vec::new();
+    let mut episodes = Vec::new();
+    for &surrounding in surroundings {
+        let mut per_seed = Vec::new();
+        for (net, side) in policies {
+            let scenes = sample_scenes(
+                config,
+                purpose_seed(side.seed, Purpose::Test),
+                0,
+                config.eval.test_scenarios,
+            );
+            let (all, others) = match surrounding {
+                Surrounding::Ne => (true, Driver::Idm),
+                Surrounding::Idm => (false, Driver::Idm),
+                Surrounding::Const => (false, Driver::ConstSpeed),
+            };
+            let metrics: Vec<_> = policy_rollout(config, net, all, others, &scenes, threads)?
+                .iter()
+                .map(EpisodeMetrics::of)
+                .collect();
+            episodes.extend(metrics.iter().enumerate().map(|(scenario, &metrics)| EpisodeRow {
+                seed: side.seed,
+                surrounding,
+                scenario,
+                metrics,
+            }));
+            per_seed.push((side.seed, Summary::of(&metrics)));
+        }
+        columns.push(Column {
+            surrounding,
+            mean: mean_over_seeds(&per_seed),
+            per_seed,
+        });
+    }
+    Ok(Study {
+        mode: policies[0].1.mode.clone(),
+        seeds: policies.iter().map(|(_, s)| s.seed).collect(),
+        columns,
+        episodes,
+    })
+}
+
+fn count(x: f64) -> String {
+    if x.fract() == 0.0 {
+        format!("{x:.0}")
+    } else {
+        format!("{x:.1}")
+    }
+}
+
+impl Study {
+    /// A Markdown table laid out like the paper's Tables II and III.
+    pub fn markdown(&self) -> String {
+        let title = if self.mode == "sarl" {
+            "Single-agent RL"
+        } else {
+            "MARL with MPGs"
+        };
+        let head = if self.mode == "sarl" {
+            "Surrounding vehicles' policies"
+        } else {
+            "Selected players' policies"
+        };
+        let mut out = format!(
+            "Statistical results: {title} (policy seeds {:?})\n\n| {head} |",
+            self.seeds
+        );
+        for c in &self.columns {
+            out.push_str(&format!(" {} |", c.surrounding.title()));
+        }
+        out.push_str(&format!("\n|---|{}\n", "---|".repeat(self.columns.len())));
+        let row = |name: &str, f: &dyn Fn(&MeanSummary) -> String| {
+            let cells: String = self
+                .columns
+                .iter()
+                .map(|c| format!(" {} |", f(&c.mean)))
+                .collect();
+            format!("| {name} |{cells}\n")
+        };
+        out += &row("Collision rate", &|m| {
+            format!("{}/{}", count(m.collisions), m.episodes)
+        });
+        out += &row("Failure rate", &|m| {
+            format!("{}/{}", count(m.failures), m.episodes)
+        });
+        out += &row("Average minimum inter-vehicle distance (m)", &|m| {
+            format!("{:.4}", m.min_distance)
+        });
+        out += &row("Average ego vehicle speed (m/s)", &|m| {
+            format!("{:.4}", m.mean_speed)
+        });
+        out += &row("Average acceleration magnitude (m/s^2)", &|m| {
+            format!("{:.4}", m.mean_abs_accel)
+        });
+        out += &row("Average jerk magnitude (m/s^3)", &|m| {
+            format!("{:.4}", m.mean_abs_jerk)
+        });
+        out
+    }
+
+    /// Every episode as CSV.
+    pub fn episodes_csv(&self) -> String {
+        let mut out = String::from(
+            "seed,surrounding,scenario,collision,failure,min_distance,mean_speed,mean_abs_accel,mean_abs_jerk\n",
+        );
+        for e in &self.episodes {
+            let m = &e.metrics;
+            out.push_str(&format!(
+                "{},{},{},{},{},{},{},{},{}\n",
+                e.seed,
+                e.surrounding.title().to_lowercase().replace(' ', "_"),
+                e.scenario,
+                u8::from(m.collision),
+                u8::from(m.failure),
+                m.min_distance,
+                m.mean_speed,
+                m.mean_abs_accel,
+                m.mean_abs_jerk
+            ));
+        }
+        out
+    }
+}
