@@ -169,8 +169,10 @@ pub struct TrainConfig {
     pub epochs: usize,
     /// Initial states per minibatch.
     pub batch: usize,
-    /// Adam step size.
+    /// Adam step size at the first epoch.
     pub learning_rate: f64,
+    /// Adam step size at the last epoch; it decays exponentially in between.
+    pub learning_rate_final: f64,
     /// Largest gradient norm (clipped above).
     pub grad_clip: f64,
     /// Fixed probe initial states for the curves (disjoint from training).

@@ -117,3 +117,68 @@ fn check_mpg_exact_json_reports_every_player_below_1e_9() {
     assert_eq!(v["is_potential_game"], true);
     assert_eq!(v["setting"], "exact");
 }
+
+#[test]
+fn train_then_eval_end_to_end_and_deterministic() {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-train-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = bin()
+        .args([
+            "train",
+            "--config",
+            "configs/smoke.toml",
+            "--seeds",
+            "0,1",
+            "--out",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for seed in [0, 1] {
+        for ext in ["safetensors", "json", "curves.csv"] {
+            assert!(dir.join(format!("seed{seed}.{ext}")).exists(), "seed{seed}.{ext}");
+        }
+    }
+    let episodes = dir.join("episodes.csv");
+    let eval = |extra: &[&str]| {
+        let out = bin()
+            .args(["eval", "--config", "configs/smoke.toml", "--policy"])
+            .arg(&dir)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        out.stdout
+    };
+    let json: serde_json::Value = serde_json::from_slice(&eval(&["--json"])).unwrap();
+    assert_eq!(json["seeds"], serde_json::json!([0, 1]));
+    let columns = json["columns"].as_array().unwrap();
+    assert_eq!(columns.len(), 3);
+    assert_eq!(columns[0]["mean"]["episodes"], 8);
+    // Same command, same numbers.
+    assert_eq!(eval(&["--json"]), eval(&["--json"]));
+    let table = String::from_utf8(eval(&[
+        "--surrounding",
+        "idm",
+        "--episodes",
+        episodes.to_str().unwrap(),
+    ]))
+    .unwrap();
+    assert!(table.contains("| Selected players' policies | IDM |"), "{table}");
+    let csv = std::fs::read_to_string(&episodes).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 2 * 8, "header + 2 seeds x 8 scenarios");
+    // A policy made for 9 players is refused by a configuration with 5.
+    let small = smoke_text()
+        .replace("n_leaders = 4", "n_leaders = 2")
+        .replace("n_followers = 4", "n_followers = 2");
+    let path = temp_config("small", &small);
+    let out = bin()
+        .args(["eval", "--config"])
+        .arg(&path)
+        .arg("--policy")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_rejected(&out, "made for 9 players");
+}

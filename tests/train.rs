@@ -63,6 +63,7 @@ fn sarl_training_improves_the_ego_return() {
     config.sim.horizon = 10.0;
     config.train.epochs = 20;
     config.train.learning_rate = 0.003;
+    config.train.learning_rate_final = 0.003;
     let records = train(&config, &run(Mode::Sarl, &dir), &NO_STOP, &mut |_| {}).unwrap();
     let (first, last) = first_last(&records);
     assert!(last > first, "probe ego return {first} -> {last}");
@@ -225,4 +226,14 @@ fn mismatched_truncated_or_corrupted_policy_files_are_refused() {
     // A sidecar that is not JSON.
     std::fs::write(dir.join("p.json"), "{not json").unwrap();
     assert!(matches!(file::load(&base, 9), Err(PolicyError::Sidecar { .. })));
+}
+
+#[test]
+fn learning_rate_decays_exponentially_to_its_final_value() {
+    let mut t = smoke().train;
+    (t.epochs, t.learning_rate, t.learning_rate_final) = (3, 1e-2, 1e-4);
+    let lr: Vec<f64> = (0..3).map(|e| mpgdrive::train::learning_rate(&t, e)).collect();
+    approx::assert_relative_eq!(lr[0], 1e-2);
+    approx::assert_relative_eq!(lr[1], 1e-3, max_relative = 1e-12);
+    approx::assert_relative_eq!(lr[2], 1e-4, max_relative = 1e-12);
 }

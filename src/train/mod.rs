@@ -200,6 +200,17 @@ fn sidecar(
     }
 }
 
+/// Step size of `epoch` (from 0): exponential decay from `learning_rate` to
+/// `learning_rate_final` at the last epoch.
+pub fn learning_rate(t: &crate::config::TrainConfig, epoch: usize) -> f64 {
+    let progress = if t.epochs > 1 {
+        epoch as f64 / (t.epochs - 1) as f64
+    } else {
+        0.0
+    };
+    t.learning_rate * (t.learning_rate_final / t.learning_rate).powf(progress)
+}
+
 /// Trains one policy; `on_epoch` sees every epoch's record. Returns the curves.
 ///
 /// When `stop` becomes true, training ends after the current epoch with a checkpoint and
@@ -251,6 +262,7 @@ pub fn train(
     let start = Instant::now();
     let elapsed_before = records.last().map_or(0.0, |r| r.wall_seconds);
     for epoch in records.len()..t.epochs {
+        opt.set_lr(learning_rate(t, epoch));
         let scenes = sample_scenes(config, train_seed, epoch * t.batch, t.batch);
         let out = tensor::rollout(
             config,
