@@ -79,6 +79,10 @@ enum Command {
         /// A policy (BASE, BASE.json or BASE.safetensors) or a directory of one per seed.
         #[arg(long)]
         policy: PathBuf,
+        /// MPG policies (file or directory) driving the NE surrounding players when --policy is
+        /// a single-agent (sarl) policy; matched by seed.
+        #[arg(long)]
+        ne_policy: Option<PathBuf>,
         /// Surrounding players, comma-separated: ne, idm, const.
         #[arg(long, value_enum, value_delimiter = ',', default_value = "ne,idm,const")]
         surrounding: Vec<SurroundingArg>,
@@ -143,7 +147,7 @@ fn main() -> ExitCode {
                 || e.downcast_ref::<UsageMessage>().is_some()
                 || matches!(
                     e.downcast_ref::<EvalError>(),
-                    Some(EvalError::Policy(_) | EvalError::NoPolicy(_))
+                    Some(EvalError::Policy(_) | EvalError::NoPolicy(_) | EvalError::NeedNePolicy { .. })
                 );
             if bad_input {
                 ExitCode::from(2)
@@ -243,12 +247,17 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Eval {
             common,
             policy,
+            ne_policy,
             surrounding,
             episodes,
             json,
         } => {
             let (config, _, threads) = load(&common)?;
             let policies = load_policies(&policy, config.n_agents())?;
+            let ne_policies = match &ne_policy {
+                Some(path) => load_policies(path, config.n_agents())?,
+                None => Vec::new(),
+            };
             let kinds: Vec<_> = surrounding
                 .iter()
                 .map(|s| match s {
@@ -258,7 +267,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 })
                 .collect();
             let start = Instant::now();
-            let study = evaluate(&config, &policies, &kinds, threads)?;
+            let study = evaluate(&config, &policies, &ne_policies, &kinds, threads)?;
             let wall = start.elapsed().as_secs_f64();
             if let Some(path) = episodes {
                 mpgdrive::atomic::write(&path, study.episodes_csv())

@@ -168,6 +168,46 @@ fn train_then_eval_end_to_end_and_deterministic() {
     assert!(table.contains("| Selected players' policies | IDM |"), "{table}");
     let csv = std::fs::read_to_string(&episodes).unwrap();
     assert_eq!(csv.lines().count(), 1 + 2 * 8, "header + 2 seeds x 8 scenarios");
+    // A single-agent policy against NE players needs the MPG policies (Table III).
+    let sarl = dir.join("sarl");
+    let out = bin()
+        .args([
+            "train",
+            "--config",
+            "configs/smoke.toml",
+            "--mode",
+            "sarl",
+            "--seeds",
+            "0",
+            "--out",
+        ])
+        .arg(&sarl)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let sarl_eval = |extra: &[&str]| {
+        bin()
+            .args([
+                "eval",
+                "--config",
+                "configs/smoke.toml",
+                "--surrounding",
+                "ne",
+                "--policy",
+            ])
+            .arg(&sarl)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    assert_rejected(&sarl_eval(&[]), "--ne-policy");
+    let with_ne = sarl_eval(&["--ne-policy", dir.to_str().unwrap()]);
+    assert!(
+        with_ne.status.success(),
+        "{}",
+        String::from_utf8_lossy(&with_ne.stderr)
+    );
+    assert!(String::from_utf8_lossy(&with_ne.stdout).contains("Single-agent RL"));
     // A policy made for 9 players is refused by a configuration with 5.
     let small = smoke_text()
         .replace("n_leaders = 4", "n_leaders = 2")

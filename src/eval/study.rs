@@ -1,12 +1,13 @@
 //! The statistical study (Tables II and III): a policy, or one per seed, drives the ego over
 //! `eval.test_scenarios` test initial states per seed (drawn from the seed's test stream,
-//! disjoint from training and probe states), with the surrounding players driven by the same
-//! shared policy (NE), IDM or constant speed. Counts are averaged over seeds, so rates can be
+//! disjoint from training and probe states), with the surrounding players driven by the NE
+//! policies (the shared MPG policy; for a single-agent ego, the MPG policy of the same seed, as
+//! in Table III), IDM or constant speed. Counts are averaged over seeds, so rates can be
 //! fractional (15.4/500).
 
 use crate::config::Config;
 use crate::eval::metrics::{EpisodeMetrics, Summary};
-use crate::policy::drive::policy_rollout;
+use crate::policy::drive::{Others, policy_rollout};
 use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::network::PolicyNet;
 use crate::sim::rollout::Driver;
@@ -53,6 +54,14 @@ pub enum EvalError {
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
+    },
+    /// A single-agent policy against NE players needs the MPG policy of its seed.
+    #[error(
+        "NE surrounding players for a single-agent policy need the MPG policy of seed {seed}: pass --ne-policy"
+    )]
+    NeedNePolicy {
+        /// The seed without an MPG policy.
+        seed: u64,
     },
     /// libtorch failed.
     #[error("libtorch: {0}")]
@@ -157,10 +166,12 @@ pub struct Study {
     pub episodes: Vec<EpisodeRow>,
 }
 
-/// Runs the study.
+/// Runs the study. `ne_policies` are the MPG policies that drive the surrounding players in the
+/// NE column when the evaluated policy is a single-agent one (matched by seed), as in Table III.
 pub fn evaluate(
     config: &Config,
     policies: &[(PolicyNet, Sidecar)],
+    ne_policies: &[(PolicyNet, Sidecar)],
     surroundings: &[Surrounding],
     threads: usize,
 ) -> Result<Study, EvalError> {
@@ -175,12 +186,18 @@ pub fn evaluate(
                 0,
                 config.eval.test_scenarios,
             );
-            let (all, others) = match surrounding {
-                Surrounding::Ne => (true, Driver::Idm),
-                Surrounding::Idm => (false, Driver::Idm),
-                Surrounding::Const => (false, Driver::ConstSpeed),
+            let others = match surrounding {
+                Surrounding::Ne if side.mode == "mpg" => Others::SameNetwork,
+                Surrounding::Ne => {
+                    let ne = ne_policies
+                        .iter()
+                        .find(|(_, s)| s.seed == side.seed && s.mode == "mpg");
+                    Others::Network(&ne.ok_or(EvalError::NeedNePolicy { seed: side.seed })?.0)
+                }
+                Surrounding::Idm => Others::Driver(Driver::Idm),
+                Surrounding::Const => Others::Driver(Driver::ConstSpeed),
             };
-            let metrics: Vec<_> = policy_rollout(config, net, all, others, &scenes, threads)?
+            let metrics: Vec<_> = policy_rollout(config, net, others, &scenes, threads)?
                 .iter()
                 .map(EpisodeMetrics::of)
                 .collect();

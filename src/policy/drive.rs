@@ -1,4 +1,4 @@
-//! Driving scenarios with a trained network in the scalar engine.
+//! Driving scenarios with trained networks in the scalar engine.
 
 use crate::config::Config;
 use crate::policy::network::PolicyNet;
@@ -7,32 +7,55 @@ use crate::sim::rollout::{Driver, EpisodeOutcome, RolloutOptions, rollout};
 use crate::sim::state::Scene;
 use std::sync::Mutex;
 
-/// Rolls `scenes` out with the network driving the ego (and every player when `all_players`),
-/// the rest driven by `others`. Each worker thread gets its own copy of the network.
+/// Who drives the players other than the ego.
+#[derive(Debug, Clone, Copy)]
+pub enum Others<'a> {
+    /// The ego's network too (parameter sharing).
+    SameNetwork,
+    /// Another network.
+    Network(&'a PolicyNet),
+    /// A non-learning driver.
+    Driver(Driver),
+}
+
+fn copies(net: &PolicyNet, n: usize) -> Result<Vec<PolicyNet>, tch::TchError> {
+    (0..n).map(|_| net.try_clone()).collect()
+}
+
+/// Rolls `scenes` out with the network driving the ego and `others` the other players. Each
+/// worker thread gets its own copies of the networks.
 pub fn policy_rollout(
     config: &Config,
     net: &PolicyNet,
-    all_players: bool,
-    others: Driver,
+    others: Others,
     scenes: &[Scene],
     threads: usize,
 ) -> Result<Vec<EpisodeOutcome>, tch::TchError> {
     let threads = threads.clamp(1, scenes.len().max(1));
-    let pool = Mutex::new(
-        (0..threads)
-            .map(|_| net.try_clone())
-            .collect::<Result<Vec<_>, _>>()?,
-    );
+    let second: Vec<Option<PolicyNet>> = match others {
+        Others::Network(o) => copies(o, threads)?.into_iter().map(Some).collect(),
+        _ => (0..threads).map(|_| None).collect(),
+    };
+    let pool = Mutex::new(copies(net, threads)?.into_iter().zip(second).collect::<Vec<_>>());
+    // Resolved here: the closure runs on worker threads and may not hold a network reference.
+    let driver = match others {
+        Others::Driver(d) => Some(d),
+        _ => None,
+    };
     let opts = RolloutOptions {
         threads,
         ..RolloutOptions::from_config(config)
     };
     Ok(rollout(config, &opts, scenes, || {
-        let copy = pool
+        let (ego, second) = pool
             .lock()
             .expect("pool lock")
             .pop()
-            .expect("one network per thread");
-        PolicyActor::new(config, copy, others, all_players)
+            .expect("networks for each thread");
+        match (driver, second) {
+            (Some(d), _) => PolicyActor::new(config, ego, d, false),
+            (None, Some(o)) => PolicyActor::with_others_policy(config, ego, o),
+            (None, None) => PolicyActor::new(config, ego, Driver::Idm, true),
+        }
     }))
 }

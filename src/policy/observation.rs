@@ -134,8 +134,12 @@ pub struct PolicyActor<P: BatchPolicy> {
     pub others: Driver,
     /// True: the policy drives every player (parameter sharing); false: the ego only.
     pub all_players: bool,
+    /// A second policy for every player but the ego (for example the ego on a single-agent
+    /// policy among players on the shared MPG policy); replaces `others`.
+    others_policy: Option<P>,
     obs: Vec<f32>,
     act: Vec<f32>,
+    act_others: Vec<f32>,
 }
 
 impl<P: BatchPolicy> PolicyActor<P> {
@@ -146,8 +150,18 @@ impl<P: BatchPolicy> PolicyActor<P> {
             config: config.clone(),
             others,
             all_players,
+            others_policy: None,
             obs: Vec::new(),
             act: Vec::new(),
+            act_others: Vec::new(),
+        }
+    }
+
+    /// The ego on `policy`, every other player on `others`.
+    pub fn with_others_policy(config: &Config, policy: P, others: P) -> Self {
+        PolicyActor {
+            others_policy: Some(others),
+            ..Self::new(config, policy, Driver::Idm, true)
         }
     }
 }
@@ -174,9 +188,15 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
             }
         }
         self.policy.act(&self.obs, rows, &mut self.act);
+        if let Some(others) = self.others_policy.as_mut() {
+            self.act_others.resize(rows, 0.0);
+            others.act(&self.obs, rows, &mut self.act_others);
+        }
         for (b, scene) in scenes.iter().enumerate() {
             for i in 0..n {
-                out[b * n + i] = if i < per_scene {
+                out[b * n + i] = if i > 0 && self.others_policy.is_some() {
+                    f64::from(self.act_others[b * per_scene + i])
+                } else if i < per_scene {
                     f64::from(self.act[b * per_scene + i])
                 } else {
                     driver_accel(&self.config, self.others, scene, i, &neighbors[b * n + i])

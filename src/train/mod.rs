@@ -14,7 +14,7 @@ pub mod curves;
 
 use crate::config::Config;
 use crate::eval::EpisodeMetrics;
-use crate::policy::drive::policy_rollout;
+use crate::policy::drive::{Others, policy_rollout};
 use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::{OBS_LAYOUT_VERSION, obs_dim, observe, tensor_observations};
@@ -147,6 +147,14 @@ fn tensor_actions(
                 .narrow(1, 1, n - 1);
             Tensor::cat(&[ego, others], 1)
         }
+    }
+}
+
+/// Who drives the other players on the probe set: the shared policy (mpg) or IDM (sarl).
+fn probe_others(mode: Mode) -> Others<'static> {
+    match mode {
+        Mode::Mpg => Others::SameNetwork,
+        Mode::Sarl => Others::Driver(Driver::Idm),
     }
 }
 
@@ -298,14 +306,7 @@ pub fn train(
             });
         }
 
-        let outcomes = policy_rollout(
-            config,
-            &net,
-            run.mode == Mode::Mpg,
-            Driver::Idm,
-            &probe,
-            t.threads,
-        )?;
+        let outcomes = policy_rollout(config, &net, probe_others(run.mode), &probe, t.threads)?;
         let m = outcomes.len() as f64;
         let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
         let actions = probe_actions(config, &net, &probe);
