@@ -128,6 +128,20 @@ enum ModeArg {
     Sarl,
 }
 
+/// `println!` that ends the process quietly when stdout is closed (for example `| head`)
+/// instead of panicking on the broken pipe.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout().lock(), $($arg)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+            return Err(anyhow::Error::new(e).context("writing to stdout"));
+        }
+    }};
+}
+
 /// An error in the user's input, not a failure of the tool (exit code 2).
 fn usage(message: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(UsageMessage(message.into()))
@@ -230,7 +244,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     other => other?,
                 };
                 if let Some(r) = records.last() {
-                    println!(
+                    outln!(
                         "{} seed {seed}: {} epochs in {:.1} s, probe objective {:.2}, probe collisions {:.3}, failures {:.3} -> {}",
                         mode.name(),
                         r.epoch,
@@ -274,13 +288,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     .with_context(|| format!("cannot write {}", path.display()))?;
             }
             if json {
-                println!(
+                outln!(
                     "{}",
                     serde_json::to_string_pretty(&study).context("serialising the study")?
                 );
             } else {
-                println!("{}", study.markdown());
-                println!(
+                outln!("{}", study.markdown());
+                outln!(
                     "({} policies x {} kinds x {} scenarios in {wall:.2} s)",
                     policies.len(),
                     kinds.len(),
@@ -322,12 +336,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let report = check_mpg(&config, &settings, &PaperReward::new(&config), &mut || bar.inc(1));
             bar.finish_and_clear();
             if json {
-                println!(
+                outln!(
                     "{}",
                     serde_json::to_string_pretty(&report).context("serialising the report")?
                 );
             } else {
-                println!(
+                outln!(
                     "check-mpg ({} setting: feasibility {}, collision termination {}), K = {}, M = {}, seed {}",
                     report.setting,
                     report.feasibility,
@@ -336,14 +350,17 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     report.states,
                     report.seed
                 );
-                println!("| player | max rel. gap | max abs. gap | min abs. Delta J |\n|---|---|---|---|");
+                outln!("| player | max rel. gap | max abs. gap | min abs. Delta J |\n|---|---|---|---|");
                 for p in &report.players {
-                    println!(
+                    outln!(
                         "| {} | {:.3e} | {:.3e} | {:.3e} |",
-                        p.label, p.max_relative_gap, p.max_absolute_gap, p.min_abs_delta_j
+                        p.label,
+                        p.max_relative_gap,
+                        p.max_absolute_gap,
+                        p.min_abs_delta_j
                     );
                 }
-                println!(
+                outln!(
                     "largest relative gap {:.3e}: {}",
                     report.max_relative_gap,
                     if report.is_potential_game {
@@ -382,19 +399,19 @@ fn demo(config: &Config, seed: u64, threads: usize, scenarios: usize, json: bool
             .iter()
             .map(|(name, s, wall)| serde_json::json!({"surrounding": name, "summary": s, "wall_seconds": wall}))
             .collect();
-        println!(
+        outln!(
             "{}",
             serde_json::to_string_pretty(
                 &serde_json::json!({"seed": seed, "scenarios": scenarios, "ego": "IDM", "results": v})
             )?
         );
     } else {
-        println!(
+        outln!(
             "mpgdrive demo: {scenarios} forced-merge scenarios (seed {seed}), ego driven by IDM behind its projected leader\n"
         );
         for (name, s, wall) in &results {
-            println!("{}", s.markdown(&format!("Surrounding players: {name}")));
-            println!(
+            outln!("{}", s.markdown(&format!("Surrounding players: {name}")));
+            outln!(
                 "({} episodes x {} steps in {:.3} s)\n",
                 s.episodes,
                 config.n_steps(),
