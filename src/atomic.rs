@@ -3,17 +3,20 @@
 
 use std::path::{Path, PathBuf};
 
-/// The temporary name used while writing `path` (same directory, same extension last, so
-/// tools that look at the extension still recognise it).
+/// The temporary name used while writing `path`: a hidden file in the same directory whose
+/// name ends like the target's, so tools that look at the extension still recognise it.
 pub fn temporary(path: &Path) -> PathBuf {
-    let mut name = std::ffi::OsString::from(".");
+    let mut name = std::ffi::OsString::from(format!(".{}.tmp.", std::process::id()));
     name.push(path.file_name().unwrap_or_default());
-    name.push(format!(".{}.tmp", std::process::id()));
-    let tmp = path.with_file_name(name);
-    match path.extension() {
-        Some(ext) => tmp.with_extension(format!("tmp.{}", ext.to_string_lossy())),
-        None => tmp,
-    }
+    path.with_file_name(name)
+}
+
+/// `path` with `suffix` appended to its file name (`seed0` + `.ckpt` = `seed0.ckpt`), unlike
+/// `Path::with_extension`, which would replace an existing extension.
+pub fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(suffix);
+    path.with_file_name(name)
 }
 
 /// Writes `contents` to `path` atomically.

@@ -6,6 +6,7 @@
 //! policy. A file whose layout does not match, or whose weights are truncated or corrupted, is
 //! refused with a [`PolicyError`].
 
+use crate::atomic::with_suffix;
 use crate::config::Config;
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::OBS_LAYOUT_VERSION;
@@ -85,12 +86,7 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
         Some("safetensors" | "json") => base.with_extension(""),
         _ => base.to_path_buf(),
     };
-    let with = |ext: &str| {
-        let mut name = stem.file_name().unwrap_or_default().to_os_string();
-        name.push(ext);
-        stem.with_file_name(name)
-    };
-    (with(".safetensors"), with(".json"))
+    (with_suffix(&stem, ".safetensors"), with_suffix(&stem, ".json"))
 }
 
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PolicyError + '_ {

@@ -12,6 +12,7 @@
 
 pub mod curves;
 
+use crate::atomic::with_suffix;
 use crate::config::Config;
 use crate::eval::EpisodeMetrics;
 use crate::policy::drive::{Others, policy_rollout};
@@ -108,13 +109,6 @@ pub struct TrainRun {
     pub resume: bool,
     /// The command line, recorded in the sidecar.
     pub command: String,
-}
-
-/// Paths of a run's outputs.
-fn with_suffix(base: &Path, suffix: &str) -> PathBuf {
-    let mut name = base.file_name().unwrap_or_default().to_os_string();
-    name.push(suffix);
-    base.with_file_name(name)
 }
 
 /// The checkpoint base path of a run.
