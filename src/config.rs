@@ -86,6 +86,10 @@ pub struct SimConfig {
     pub feasibility: bool,
     /// TTC safety threshold `tau_s` of the feasibility projection (s).
     pub tau_s: f64,
+    /// Standstill clearance kept by the feasibility projection (m): its TTC uses the gap
+    /// `|x_i - x_j| - length - safety_gap`, so a platoon held at TTC = tau_s settles this far
+    /// apart instead of bumper to bumper.
+    pub safety_gap: f64,
     /// End the episode for everyone at the first collision.
     pub terminate_on_collision: bool,
     /// With termination: charge each player its collision-step reward for every remaining
@@ -303,6 +307,7 @@ impl Config {
             "must lie in (0, 1]".into(),
         )?;
         positive("sim.tau_s", m.tau_s)?;
+        non_negative("sim.safety_gap", m.safety_gap)?;
         non_negative("reward.v_desired", r.v_desired)?;
         positive("reward.v_c", r.v_c)?;
         positive("reward.epsilon", r.epsilon)?;

@@ -6,7 +6,9 @@ use approx::assert_abs_diff_eq;
 use common::{car, scene, smoke};
 use mpgdrive::eval::EpisodeMetrics;
 use mpgdrive::sim::Driver;
-use mpgdrive::sim::rollout::{DriverActor, Recording, RolloutOptions, rollout};
+use mpgdrive::sim::neighbors::Neighbors;
+use mpgdrive::sim::rollout::{Actor, DriverActor, Recording, RolloutOptions, rollout};
+use mpgdrive::sim::state::Scene;
 use mpgdrive::sim::safety::ttc;
 use mpgdrive::sim::sampler::sample_scenes;
 
@@ -131,7 +133,7 @@ fn feasibility_holds_ttc_at_tau_behind_a_steady_leader() {
     // "constant speed". The projection is two-sided: the follower brakes to keep its TTC, and
     // the leader, seeing a follower that would break it, speeds up a little. Each assumes the
     // other keeps its speed, and each correction only widens the gap, so the bumper-gap TTC
-    // never drops below tau_s = 3 s and the gap stays positive. Without the
+    // never drops below tau_s = 3 s and the gap stays above the safety gap. Without the
     // projection the follower closes 40 - 5 = 35 m at 10 m/s: after 35 steps (3.5 s) the boxes
     // touch, after step index 35 (the 36th) they overlap.
     let mut config = smoke();
@@ -152,10 +154,11 @@ fn feasibility_holds_ttc_at_tau_behind_a_steady_leader() {
     let on = run(&config);
     assert!(on.collision.is_none());
     let t = on.trajectory.as_ref().unwrap();
+    let clearance = config.vehicle.length + config.sim.safety_gap;
     let min_ttc = t
         .states
         .chunks(3)
-        .map(|v| ttc(v[1].x - v[2].x - 5.0, v[2].v - v[1].v))
+        .map(|v| ttc(v[1].x - v[2].x - clearance, v[2].v - v[1].v))
         .fold(f64::INFINITY, f64::min);
     assert!(min_ttc >= 3.0 - 1e-9, "min TTC {min_ttc}");
     assert!(
@@ -171,4 +174,60 @@ fn feasibility_holds_ttc_at_tau_behind_a_steady_leader() {
     config.sim.feasibility = false;
     let off = run(&config);
     assert_eq!(off.collision.map(|c| (c.step, c.a, c.b)), Some((35, 1, 2)));
+}
+
+/// Every player repeats one raw action per step.
+struct Fixed(Vec<f64>);
+
+impl Actor for Fixed {
+    fn act(&mut self, _step: usize, _scenes: &[Scene], _neighbors: &[Neighbors], out: &mut [f64]) {
+        out.copy_from_slice(&self.0);
+    }
+}
+
+/// Smallest bumper gap between successive target-lane players over a recorded episode.
+fn min_platoon_gap(out: &mpgdrive::sim::EpisodeOutcome, n: usize, length: f64) -> f64 {
+    let t = out.trajectory.as_ref().unwrap();
+    t.states
+        .chunks(n)
+        .flat_map(|v| v[1..].windows(2).map(|w| w[0].x - w[1].x - length).collect::<Vec<_>>())
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn projected_platoon_keeps_the_safety_gap_instead_of_touching() {
+    // Regression: trained players pushed a platoon into its bounds (the middle car braking
+    // hard, the one behind accelerating) and the bumper-gap projection let it settle about
+    // 0.05 m apart, until simultaneous corrections made the boxes overlap (90% of NE test
+    // episodes ended so). Four target-lane cars at 15 m/s, 12 m apart centre to centre
+    // (TTC infinite), raw actions 0, -g, +g, +g: the projection must keep every gap at least
+    // `safety_gap` minus what one step of the constant-speed assumption can lose.
+    let mut config = smoke();
+    config.scenario.n_leaders = 2;
+    config.scenario.n_followers = 2;
+    config.sim.horizon = 30.0;
+    let g = config.vehicle.max_accel;
+    let s = scene(vec![
+        car(0.0, 10.0, true),
+        car(236.0, 15.0, false),
+        car(224.0, 15.0, false),
+        car(212.0, 15.0, false),
+        car(200.0, 15.0, false),
+    ]);
+    let run = |config: &mpgdrive::Config| {
+        rollout(config, &opts(config, 1), std::slice::from_ref(&s), || {
+            Fixed(vec![0.0, 0.0, -g, g, g])
+        })
+        .remove(0)
+    };
+    let with_gap = run(&config);
+    assert!(with_gap.collision.is_none());
+    let gap = min_platoon_gap(&with_gap, 5, config.vehicle.length);
+    // dt * dv over one step with at most g of change on each side: 0.1 * 2 * 0.981 m.
+    let slack = config.sim.dt * 2.0 * g * config.sim.dt;
+    assert!(gap >= config.sim.safety_gap - slack, "min gap {gap}");
+    config.sim.safety_gap = 0.0;
+    let bare = run(&config);
+    let bare_gap = min_platoon_gap(&bare, 5, config.vehicle.length);
+    assert!(bare_gap < 0.5, "without the safety gap the platoon closes up: {bare_gap}");
 }

@@ -346,12 +346,13 @@ fn run_chunk(
             for i in 0..n {
                 let me = &scene.vehicles[i];
                 let mut a = raw[b * n + i];
+                let clearance = veh.length + config.sim.safety_gap;
                 if opts.feasibility && !me.on_ramp {
                     let nb = &neighbors[b * n + i];
                     let lead = neighbor_of(scene, nb.lane_leader, me);
                     let follow = neighbor_of(scene, nb.lane_follower, me);
                     let (lo, hi) =
-                        feasible_interval(&me.x, &me.v, &lead, &follow, veh.length, dt, config.sim.tau_s);
+                        feasible_interval(&me.x, &me.v, &lead, &follow, clearance, dt, config.sim.tau_s);
                     a = project_feasible(&a, &lo, &hi);
                 }
                 applied[i] = clip_action(&a, &me.v, veh.max_accel, veh.v_min, veh.v_max, dt);

@@ -1,11 +1,14 @@
 //! Time to collision and the feasibility projection of Section V-ii.
 //!
-//! The feasibility TTC uses the bumper-to-bumper gap `d = |x_i - x_j| - length`. With the
-//! centre-to-centre distance, "TTC >= tau_s" still lets a follower close to a centre distance
-//! near zero as its closing speed vanishes, so the boxes overlap (measured:
-//! `tests/rollout.rs`, `feasibility_holds_ttc_at_tau_behind_a_steady_leader`); with the gap,
-//! the gap shrinks by at most a factor `1 - dt / tau_s` per step and stays positive. The reward
-//! terms keep the paper's centre-to-centre `|x_i - x_j|`.
+//! The feasibility TTC uses the gap `d = |x_i - x_j| - clearance`, where the clearance is the
+//! vehicle length plus `sim.safety_gap`. With the centre-to-centre distance, "TTC >= tau_s"
+//! still lets a follower close to a centre distance near zero as its closing speed vanishes,
+//! so the boxes overlap (measured: `tests/rollout.rs`,
+//! `feasibility_holds_ttc_at_tau_behind_a_steady_leader`); with the bumper gap alone, the gap
+//! shrinks by at most a factor `1 - dt / tau_s` per step but a platoon of players held at its
+//! bounds settles bumper to bumper (about 0.05 m) and then touches, because every vehicle is
+//! projected at once assuming its neighbours keep their speed. The safety gap keeps that
+//! platoon `safety_gap` apart. The reward terms keep the paper's centre-to-centre `|x_i - x_j|`.
 //!
 //! **Feasible interval.** For a target-lane vehicle `i` with immediate same-lane leader `L` and
 //! follower `F`, the action `a` is feasible when, one step later (neighbours keeping their
@@ -14,8 +17,8 @@
 //! next speed `v' = v + a dt`:
 //!
 //! ```text
-//! d_L' = (x_L + v_L dt) - (x + v dt) - length    v' <= v_L + d_L' / tau_s   ->  a <= hi
-//! d_F' = (x + v dt) - (x_F + v_F dt) - length    v' >= v_F - d_F' / tau_s   ->  a >= lo
+//! d_L' = (x_L + v_L dt) - (x + v dt) - clearance    v' <= v_L + d_L' / tau_s   ->  a <= hi
+//! d_F' = (x + v dt) - (x_F + v_F dt) - clearance    v' >= v_F - d_F' / tau_s   ->  a >= lo
 //! ```
 //!
 //! A missing neighbour gives no bound. The applied action is `min(max(a, lo), hi)`, then
@@ -51,21 +54,21 @@ pub struct Neighbor<T> {
     pub present: T,
 }
 
-/// The feasible acceleration interval `(lo, hi)` of a vehicle at `(x, v)` of length `length`;
-/// see the module docs. Without a neighbour the bound is `-NO_BOUND` or `NO_BOUND`.
+/// The feasible acceleration interval `(lo, hi)` of a vehicle at `(x, v)` whose gaps are
+/// measured as `|x_i - x_j| - clearance`; see the module docs. Without a neighbour the bound is `-NO_BOUND` or `NO_BOUND`.
 pub fn feasible_interval<T: Num>(
     x: &T,
     v: &T,
     leader: &Neighbor<T>,
     follower: &Neighbor<T>,
-    length: f64,
+    clearance: f64,
     dt: f64,
     tau_s: f64,
 ) -> (T, T) {
     let x_next = x.add(&v.mul_c(dt));
-    let d_lead = leader.x.add(&leader.v.mul_c(dt)).sub(&x_next).add_c(-length);
+    let d_lead = leader.x.add(&leader.v.mul_c(dt)).sub(&x_next).add_c(-clearance);
     let hi = leader.v.add(&d_lead.mul_c(1.0 / tau_s)).sub(v).mul_c(1.0 / dt);
-    let d_follow = x_next.sub(&follower.x.add(&follower.v.mul_c(dt))).add_c(-length);
+    let d_follow = x_next.sub(&follower.x.add(&follower.v.mul_c(dt))).add_c(-clearance);
     let lo = follower
         .v
         .sub(&d_follow.mul_c(1.0 / tau_s))

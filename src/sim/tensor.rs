@@ -177,7 +177,7 @@ pub fn apply_limits(
             &batch.v,
             &lead,
             &follow,
-            veh.length,
+            veh.length + config.sim.safety_gap,
             dt,
             config.sim.tau_s,
         );
