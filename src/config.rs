@@ -187,6 +187,29 @@ pub struct TrainConfig {
     pub threads: usize,
 }
 
+/// Reads a TOML file into `T` (unknown keys refused when `T` says so).
+pub fn load_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        path: path.display().to_string(),
+        source,
+    })?;
+    parse_toml(&text, &path.display().to_string())
+}
+
+/// Parses TOML text into `T`; errors name `origin` and the line.
+pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, origin: &str) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e| {
+        let line = e.span().map(|s| text[..s.start].matches('\n').count() + 1);
+        ConfigError::Parse {
+            path: origin.to_string(),
+            message: match line {
+                Some(l) => format!("line {l}: {}", e.message()),
+                None => e.message().to_string(),
+            },
+        }
+    })
+}
+
 /// The whole configuration (one TOML file).
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -214,25 +237,14 @@ pub struct Config {
 impl Config {
     /// Reads, parses and validates a TOML configuration file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-            path: path.display().to_string(),
-            source,
-        })?;
-        Self::parse(&text, &path.display().to_string())
+        let config: Config = load_toml(path)?;
+        config.validate()?;
+        Ok(config)
     }
 
     /// Parses and validates TOML text; `origin` names it in messages.
     pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
-        let config: Config = toml::from_str(text).map_err(|e| {
-            let line = e.span().map(|s| text[..s.start].matches('\n').count() + 1);
-            ConfigError::Parse {
-                path: origin.to_string(),
-                message: match line {
-                    Some(l) => format!("line {l}: {}", e.message()),
-                    None => e.message().to_string(),
-                },
-            }
-        })?;
+        let config: Config = parse_toml(text, origin)?;
         config.validate()?;
         Ok(config)
     }
@@ -354,7 +366,7 @@ impl Config {
     }
 }
 
-fn check(key: &str, ok: bool, message: String) -> Result<(), ConfigError> {
+pub(crate) fn check(key: &str, ok: bool, message: String) -> Result<(), ConfigError> {
     if ok {
         Ok(())
     } else {
@@ -365,16 +377,16 @@ fn check(key: &str, ok: bool, message: String) -> Result<(), ConfigError> {
     }
 }
 
-fn finite(key: &str, x: f64) -> Result<(), ConfigError> {
+pub(crate) fn finite(key: &str, x: f64) -> Result<(), ConfigError> {
     check(key, x.is_finite(), format!("{x} is not a finite number"))
 }
 
-fn positive(key: &str, x: f64) -> Result<(), ConfigError> {
+pub(crate) fn positive(key: &str, x: f64) -> Result<(), ConfigError> {
     finite(key, x)?;
     check(key, x > 0.0, format!("{x} must be positive"))
 }
 
-fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
+pub(crate) fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
     finite(key, x)?;
     check(key, x >= 0.0, format!("{x} must not be negative"))
 }

@@ -11,6 +11,7 @@ pub mod game;
 pub mod num;
 pub mod policy;
 pub mod sim;
+pub mod sumo;
 pub mod train;
 
 pub use config::{Config, ConfigError};

@@ -8,9 +8,9 @@ use mpgdrive::eval::EpisodeMetrics;
 use mpgdrive::sim::Driver;
 use mpgdrive::sim::neighbors::Neighbors;
 use mpgdrive::sim::rollout::{Actor, DriverActor, Recording, RolloutOptions, rollout};
-use mpgdrive::sim::state::Scene;
 use mpgdrive::sim::safety::ttc;
 use mpgdrive::sim::sampler::sample_scenes;
+use mpgdrive::sim::state::Scene;
 
 fn opts(config: &mpgdrive::Config, threads: usize) -> RolloutOptions {
     RolloutOptions {
@@ -190,7 +190,12 @@ fn min_platoon_gap(out: &mpgdrive::sim::EpisodeOutcome, n: usize, length: f64) -
     let t = out.trajectory.as_ref().unwrap();
     t.states
         .chunks(n)
-        .flat_map(|v| v[1..].windows(2).map(|w| w[0].x - w[1].x - length).collect::<Vec<_>>())
+        .flat_map(|v| {
+            v[1..]
+                .windows(2)
+                .map(|w| w[0].x - w[1].x - length)
+                .collect::<Vec<_>>()
+        })
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -229,5 +234,8 @@ fn projected_platoon_keeps_the_safety_gap_instead_of_touching() {
     config.sim.safety_gap = 0.0;
     let bare = run(&config);
     let bare_gap = min_platoon_gap(&bare, 5, config.vehicle.length);
-    assert!(bare_gap < 0.5, "without the safety gap the platoon closes up: {bare_gap}");
+    assert!(
+        bare_gap < 0.5,
+        "without the safety gap the platoon closes up: {bare_gap}"
+    );
 }

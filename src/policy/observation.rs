@@ -62,6 +62,13 @@ pub fn features<T: Num>(
 
 /// Writes the observation of player `i` of `scene` into `out` (length [`obs_dim`]).
 pub fn observe(x_c: f64, scene: &Scene, i: usize, nb: &Neighbors, out: &mut [f32]) {
+    observe_as(x_c, scene, i, i, nb, out);
+}
+
+/// As [`observe`], with the one-hot agent index `agent` instead of `i`: for scenes that hold
+/// fewer than `N` players (SUMO traffic, naturalistic data), where vehicle `i` of the scene
+/// plays the role of player `agent`.
+pub fn observe_as(x_c: f64, scene: &Scene, i: usize, agent: usize, nb: &Neighbors, out: &mut [f32]) {
     let me = &scene.vehicles[i];
     let f = features(
         x_c,
@@ -75,7 +82,7 @@ pub fn observe(x_c: f64, scene: &Scene, i: usize, nb: &Neighbors, out: &mut [f32
         *o = v as f32;
     }
     for (k, o) in out[N_FEATURES..].iter_mut().enumerate() {
-        *o = if k == i { 1.0 } else { 0.0 };
+        *o = if k == agent { 1.0 } else { 0.0 };
     }
 }
 

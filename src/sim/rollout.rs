@@ -186,7 +186,8 @@ impl Default for EgoStats {
 }
 
 impl EgoStats {
-    fn update(&mut self, scene: &Scene, ego_accel: f64, dt: f64) {
+    /// Adds one step: the ego is `scene.vehicles[0]`, the distance runs over the others.
+    pub fn update(&mut self, scene: &Scene, ego_accel: f64, dt: f64) {
         let ego = scene.ego();
         for other in &scene.vehicles[1..] {
             let d = (other.x - ego.x).hypot(other.y - ego.y);
@@ -344,18 +345,14 @@ fn run_chunk(
             }
             let out = &mut outcomes[b];
             for i in 0..n {
-                let me = &scene.vehicles[i];
-                let mut a = raw[b * n + i];
-                let clearance = veh.length + config.sim.safety_gap;
-                if opts.feasibility && !me.on_ramp {
-                    let nb = &neighbors[b * n + i];
-                    let lead = neighbor_of(scene, nb.lane_leader, me);
-                    let follow = neighbor_of(scene, nb.lane_follower, me);
-                    let (lo, hi) =
-                        feasible_interval(&me.x, &me.v, &lead, &follow, clearance, dt, config.sim.tau_s);
-                    a = project_feasible(&a, &lo, &hi);
-                }
-                applied[i] = clip_action(&a, &me.v, veh.max_accel, veh.v_min, veh.v_max, dt);
+                applied[i] = applied_action(
+                    config,
+                    opts.feasibility,
+                    scene,
+                    i,
+                    &neighbors[b * n + i],
+                    raw[b * n + i],
+                );
             }
             rewards.compute(&base, pair, &scene.vehicles, &applied);
             for (ret, r) in out.returns.iter_mut().zip(&rewards.reward) {
@@ -426,6 +423,32 @@ fn run_chunk(
 /// crash state), so that ending an episode early never raises a return of negative rewards.
 pub fn tail_weight(gamma: f64, step: usize, steps: usize) -> f64 {
     (step + 1..steps).map(|k| gamma.powi(k as i32)).sum()
+}
+
+/// The acceleration player `i` of `scene` applies for the raw action `raw`: projected onto its
+/// feasible interval when `feasibility` is on and it is in the target lane, then clipped to
+/// `[-g, g]` and the speed bounds (Section V-ii). One function for the internal simulator and
+/// the SUMO co-simulation.
+pub fn applied_action(
+    config: &Config,
+    feasibility: bool,
+    scene: &Scene,
+    i: usize,
+    nb: &Neighbors,
+    raw: f64,
+) -> f64 {
+    let veh = &config.vehicle;
+    let dt = config.sim.dt;
+    let me = &scene.vehicles[i];
+    let mut a = raw;
+    if feasibility && !me.on_ramp {
+        let lead = neighbor_of(scene, nb.lane_leader, me);
+        let follow = neighbor_of(scene, nb.lane_follower, me);
+        let clearance = veh.length + config.sim.safety_gap;
+        let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, clearance, dt, config.sim.tau_s);
+        a = project_feasible(&a, &lo, &hi);
+    }
+    clip_action(&a, &me.v, veh.max_accel, veh.v_min, veh.v_max, dt)
 }
 
 /// The first overlapping pair `(a, b)`, `a < b`, in index order.

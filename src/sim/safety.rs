@@ -68,7 +68,9 @@ pub fn feasible_interval<T: Num>(
     let x_next = x.add(&v.mul_c(dt));
     let d_lead = leader.x.add(&leader.v.mul_c(dt)).sub(&x_next).add_c(-clearance);
     let hi = leader.v.add(&d_lead.mul_c(1.0 / tau_s)).sub(v).mul_c(1.0 / dt);
-    let d_follow = x_next.sub(&follower.x.add(&follower.v.mul_c(dt))).add_c(-clearance);
+    let d_follow = x_next
+        .sub(&follower.x.add(&follower.v.mul_c(dt)))
+        .add_c(-clearance);
     let lo = follower
         .v
         .sub(&d_follow.mul_c(1.0 / tau_s))

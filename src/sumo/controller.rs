@@ -1,0 +1,495 @@
+//! The co-simulation controller: once per SUMO step it reads the vehicles on the ramp and the
+//! target lane, forms one game per ego (the ego and its 4 leading and 4 following target-lane
+//! vehicles, as in training), builds Table I observations with the training builder, runs the
+//! policy once for every controlled vehicle, applies the feasibility projection and limits of
+//! the internal simulator, and sets `speed = v + a dt` in SUMO.
+//!
+//! Another Rust program drives it the same way `mpgdrive cosim` does:
+//!
+//! ```no_run
+//! # use mpgdrive::sumo::{Backend, Sumo, MergeGeometry, Controller, ControllerKind};
+//! # fn run(config: mpgdrive::Config, geometry: MergeGeometry, policy: mpgdrive::policy::PolicyNet)
+//! # -> Result<(), mpgdrive::sumo::SumoError> {
+//! let mut sumo = Sumo::start(Backend::Libsumo, &["sumo".into(), "-c".into(), "x.sumocfg".into()])?;
+//! let mut controller = Controller::new(config, geometry, ControllerKind::Mpg, Some(policy), 0);
+//! while sumo.min_expected()? > 0 {
+//!     sumo.step()?;
+//!     controller.step(&mut sumo)?;
+//! }
+//! let egos = controller.finish();
+//! # Ok(()) }
+//! ```
+//!
+//! Vehicles the controller drives get SUMO speed mode `speed_mode` and lane-change mode 0
+//! (no lane changes of their own; with speed mode 0 SUMO would not merge an ego anyway). An
+//! ego whose centre reaches the conflict point is treated as merged, as in the internal
+//! simulator, and told to change to the target lane next to it. Control ends when the ego is
+//! `release_after` metres past the conflict point on the target lane; SUMO then drives it
+//! again (speed mode 31, lane-change mode 1621, SUMO's defaults). Vehicles that leave,
+//! teleport or vanish are dropped from the games at once.
+
+use crate::config::Config;
+use crate::policy::network::PolicyNet;
+use crate::policy::observation::{BatchPolicy, obs_dim, observe_as};
+use crate::sim::neighbors::{Neighbors, find_neighbors};
+use crate::sim::rollout::{EgoStats, applied_action};
+use crate::sim::state::{Scene, Vehicle};
+use crate::sumo::geometry::{MergeGeometry, PlayerControl};
+use crate::sumo::{Sumo, SumoError};
+use serde::Serialize;
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::time::Instant;
+
+/// SUMO's default speed mode (all checks on).
+pub const SUMO_SPEED_MODE: i32 = 31;
+/// SUMO's default lane-change mode.
+pub const SUMO_LANE_CHANGE_MODE: i32 = 1621;
+
+/// Who drives the egos (and players).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ControllerKind {
+    /// The MARL (MPG) policy drives the ego and its players.
+    Mpg,
+    /// The single-agent policy drives the ego only.
+    Sarl,
+    /// No override: SUMO's own car-following and lane changing (metrics only).
+    Sumo,
+}
+
+impl ControllerKind {
+    /// The name used on the command line and in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            ControllerKind::Mpg => "mpg",
+            ControllerKind::Sarl => "sarl",
+            ControllerKind::Sumo => "sumo",
+        }
+    }
+}
+
+/// One target-lane or ramp vehicle as the controller sees it this step.
+#[derive(Debug, Clone)]
+struct Car {
+    id: String,
+    /// Centre x (m).
+    x: f64,
+    v: f64,
+    accel: f64,
+    /// On the ramp by the internal simulator's rule (ramp lane and before the conflict point).
+    on_ramp: bool,
+    /// Ramp lane id while on a ramp lane.
+    ramp_lane: Option<String>,
+}
+
+/// What happened to one ego.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EgoRecord {
+    /// SUMO vehicle id.
+    pub id: String,
+    /// Simulation time when control (or tracking, for `sumo`) began (s).
+    pub start: f64,
+    /// Simulation time of release, if released (s).
+    pub end: Option<f64>,
+    /// Reached the target lane.
+    pub merged: bool,
+    /// Involved in a SUMO collision while tracked.
+    pub collision: bool,
+    /// Teleported or vanished before merging.
+    pub lost: bool,
+    /// Metrics accumulated over the tracked steps (same definitions as `mpgdrive eval`).
+    #[serde(skip)]
+    pub stats: EgoStats,
+}
+
+impl EgoRecord {
+    /// Finished: released, collided or lost (an ego still driving when the run ends is not).
+    pub fn finished(&self) -> bool {
+        self.end.is_some() || self.collision || self.lost
+    }
+}
+
+/// A collision event as SUMO reports it, counted once per pair and event.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CollisionEvent {
+    /// Simulation time (s).
+    pub time: f64,
+    /// Colliding vehicle.
+    pub collider: String,
+    /// Hit vehicle.
+    pub victim: String,
+    /// Whether either vehicle was driven by the controller at the time.
+    pub controlled: bool,
+}
+
+/// Time spent in the controller's own work (microseconds, summed over steps).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ControllerTiming {
+    /// Steps handled.
+    pub steps: u64,
+    /// Total controller time (us).
+    pub total_us: f64,
+}
+
+/// The co-simulation controller (see the module docs).
+pub struct Controller {
+    config: Config,
+    geometry: MergeGeometry,
+    kind: ControllerKind,
+    policy: Option<PolicyNet>,
+    speed_mode: i32,
+    dt: f64,
+    types: HashMap<String, String>,
+    egos: BTreeMap<String, EgoRecord>,
+    controlled: HashSet<String>,
+    colliding: HashSet<(String, String)>,
+    /// Collision events (once per pair and event).
+    pub collisions: Vec<CollisionEvent>,
+    /// Steps where SUMO did not reach the commanded speed (by more than 0.01 m/s).
+    pub overridden: u64,
+    commanded: HashMap<String, f64>,
+    timing: ControllerTiming,
+    order: Vec<usize>,
+}
+
+impl Controller {
+    /// A controller; `policy` is required for `mpg` and `sarl`.
+    pub fn new(
+        config: Config,
+        geometry: MergeGeometry,
+        kind: ControllerKind,
+        policy: Option<PolicyNet>,
+        speed_mode: i32,
+    ) -> Self {
+        let dt = config.sim.dt;
+        Controller {
+            config,
+            geometry,
+            kind,
+            policy,
+            speed_mode,
+            dt,
+            types: HashMap::new(),
+            egos: BTreeMap::new(),
+            controlled: HashSet::new(),
+            colliding: HashSet::new(),
+            collisions: Vec::new(),
+            overridden: 0,
+            commanded: HashMap::new(),
+            timing: ControllerTiming::default(),
+            order: Vec::new(),
+        }
+    }
+
+    /// Controller time so far.
+    pub fn timing(&self) -> ControllerTiming {
+        self.timing
+    }
+
+    /// One control step; call it after each `sumo.step()`.
+    pub fn step(&mut self, sumo: &mut Sumo) -> Result<(), SumoError> {
+        let started = Instant::now();
+        let time = sumo.time()?;
+        self.note_collisions(sumo, time)?;
+        for id in sumo.teleporting()? {
+            self.drop_vehicle(&id, true);
+        }
+        let cars = self.read_cars(sumo)?;
+        let present: HashSet<&str> = cars.iter().map(|c| c.id.as_str()).collect();
+        let all: HashSet<String> = sumo.vehicle_ids()?.into_iter().collect();
+        for (id, ego) in self.egos.iter_mut() {
+            if !ego.finished() && !all.contains(id) {
+                ego.lost = !ego.merged;
+                ego.end.get_or_insert(time);
+                self.controlled.remove(id);
+            }
+        }
+        self.check_overrides(&cars);
+        let games = self.form_games(sumo, &cars, time)?;
+        let commands = self.decide(&cars, &games);
+        let mut driven = HashSet::new();
+        for (car, accel) in commands {
+            let c = &cars[car];
+            if self.controlled.insert(c.id.clone()) {
+                sumo.set_speed_mode(&c.id, self.speed_mode)?;
+                sumo.set_lane_change_mode(&c.id, 0)?;
+            }
+            let speed = (c.v + accel * self.dt).max(0.0);
+            sumo.set_speed(&c.id, speed)?;
+            self.commanded.insert(c.id.clone(), speed);
+            if let (Some(lane), false) = (&c.ramp_lane, c.on_ramp) {
+                if let Some((_, index)) = self.geometry.merge_lane(lane) {
+                    sumo.change_lane(&c.id, index, 1.0)?;
+                }
+            }
+            driven.insert(c.id.clone());
+        }
+        let released: Vec<String> = self.controlled.difference(&driven).cloned().collect();
+        for id in released {
+            self.controlled.remove(&id);
+            self.commanded.remove(&id);
+            if present.contains(id.as_str()) || all.contains(&id) {
+                sumo.set_speed(&id, -1.0)?;
+                sumo.set_speed_mode(&id, SUMO_SPEED_MODE)?;
+                sumo.set_lane_change_mode(&id, SUMO_LANE_CHANGE_MODE)?;
+            }
+        }
+        self.timing.steps += 1;
+        self.timing.total_us += started.elapsed().as_secs_f64() * 1e6;
+        Ok(())
+    }
+
+    /// Records collisions new this step (a pair overlapping over several steps counts once).
+    fn note_collisions(&mut self, sumo: &Sumo, time: f64) -> Result<(), SumoError> {
+        let mut now = HashSet::new();
+        for c in sumo.collisions()? {
+            let pair = if c.collider <= c.victim {
+                (c.collider.clone(), c.victim.clone())
+            } else {
+                (c.victim.clone(), c.collider.clone())
+            };
+            if now.insert(pair.clone()) && !self.colliding.contains(&pair) {
+                for id in [&c.collider, &c.victim] {
+                    if let Some(ego) = self.egos.get_mut(id) {
+                        if !ego.finished() {
+                            ego.collision = true;
+                        }
+                    }
+                }
+                self.collisions.push(CollisionEvent {
+                    time,
+                    controlled: self.controlled.contains(&c.collider) || self.controlled.contains(&c.victim),
+                    collider: c.collider,
+                    victim: c.victim,
+                });
+            }
+        }
+        self.colliding = now;
+        Ok(())
+    }
+
+    fn drop_vehicle(&mut self, id: &str, teleported: bool) {
+        self.controlled.remove(id);
+        self.commanded.remove(id);
+        if let Some(ego) = self.egos.get_mut(id) {
+            if !ego.finished() && teleported {
+                ego.lost = !ego.merged;
+            }
+        }
+    }
+
+    /// Counts commanded speeds SUMO did not apply (its safety checks, with a non-zero speed mode).
+    fn check_overrides(&mut self, cars: &[Car]) {
+        for c in cars {
+            if let Some(&v) = self.commanded.get(&c.id) {
+                if (c.v - v).abs() > 0.01 {
+                    self.overridden += 1;
+                }
+            }
+        }
+    }
+
+    /// Ramp and target-lane vehicles, centre positions.
+    fn read_cars(&mut self, sumo: &Sumo) -> Result<Vec<Car>, SumoError> {
+        let x_c = self.geometry.conflict_point;
+        let mut cars = Vec::new();
+        for id in sumo.vehicle_ids()? {
+            let lane = sumo.lane_id(&id)?;
+            let ramp = self.geometry.is_ramp(&lane);
+            if !ramp && !self.geometry.is_target(&lane) {
+                continue;
+            }
+            let s = sumo.vehicle(&id)?;
+            let heading = (90.0 - s.angle).to_radians();
+            let x = s.x - 0.5 * s.length * heading.cos();
+            cars.push(Car {
+                on_ramp: ramp && x < x_c,
+                ramp_lane: ramp.then_some(lane),
+                id,
+                x,
+                v: s.speed,
+                accel: s.accel,
+            });
+        }
+        Ok(cars)
+    }
+
+    /// Picks up new egos, releases merged ones, and forms each ego's game: indices into
+    /// `cars`, the ego first, then up to `n_leaders` leaders (front-most first) and up to
+    /// `n_followers` followers (nearest first), with their player slots.
+    fn form_games(&mut self, sumo: &Sumo, cars: &[Car], time: f64) -> Result<Vec<Game>, SumoError> {
+        let g = &self.geometry;
+        let mut by_x: Vec<usize> = (0..cars.len()).filter(|&i| !cars[i].on_ramp).collect();
+        by_x.sort_by(|&a, &b| cars[a].x.total_cmp(&cars[b].x));
+        let mut games = Vec::new();
+        for (k, c) in cars.iter().enumerate() {
+            let tracked = self.egos.get(&c.id);
+            if tracked.is_some_and(EgoRecord::finished) {
+                continue;
+            }
+            if tracked.is_none() {
+                if !c.on_ramp || c.x < g.control_from {
+                    continue;
+                }
+                let vtype = match self.types.get(&c.id) {
+                    Some(t) => t.clone(),
+                    None => {
+                        let t = sumo.type_id(&c.id)?;
+                        self.types.insert(c.id.clone(), t.clone());
+                        t
+                    }
+                };
+                if !g.controllable_types.contains(&vtype) {
+                    continue;
+                }
+                self.egos.insert(
+                    c.id.clone(),
+                    EgoRecord {
+                        id: c.id.clone(),
+                        start: time,
+                        end: None,
+                        merged: false,
+                        collision: false,
+                        lost: false,
+                        stats: EgoStats::default(),
+                    },
+                );
+            }
+            let ego = self.egos.get_mut(&c.id).expect("tracked");
+            if !c.on_ramp {
+                ego.merged = true;
+                if c.x >= g.conflict_point + g.release_after {
+                    ego.end = Some(time);
+                    continue;
+                }
+            }
+            let (n_l, n_f) = (self.config.scenario.n_leaders, self.config.scenario.n_followers);
+            let ahead: Vec<usize> = by_x
+                .iter()
+                .copied()
+                .filter(|&j| j != k && cars[j].x > c.x)
+                .collect();
+            let behind: Vec<usize> = by_x
+                .iter()
+                .rev()
+                .copied()
+                .filter(|&j| j != k && cars[j].x <= c.x)
+                .collect();
+            let leaders = &ahead[..ahead.len().min(n_l)];
+            let followers = &behind[..behind.len().min(n_f)];
+            if g.players == PlayerControl::Controllable {
+                for &j in leaders.iter().chain(followers) {
+                    if !self.types.contains_key(&cars[j].id) {
+                        let t = sumo.type_id(&cars[j].id)?;
+                        self.types.insert(cars[j].id.clone(), t);
+                    }
+                }
+            }
+            let mut members = vec![(k, 0)];
+            // Leaders front-most first fill slots n_l - len + 1 ..= n_l (the nearest is n_l).
+            let first_slot = n_l - leaders.len() + 1;
+            members.extend(
+                leaders
+                    .iter()
+                    .rev()
+                    .enumerate()
+                    .map(|(r, &j)| (j, first_slot + r)),
+            );
+            members.extend(followers.iter().enumerate().map(|(r, &j)| (j, n_l + 1 + r)));
+            games.push(Game { members });
+        }
+        games.sort_by(|a, b| cars[b.members[0].0].x.total_cmp(&cars[a.members[0].0].x));
+        Ok(games)
+    }
+
+    /// Updates the egos' metrics and returns `(car, applied acceleration)` for every vehicle
+    /// the policy drives this step (each vehicle in one game at most: the first, downstream
+    /// ego's game claims it).
+    fn decide(&mut self, cars: &[Car], games: &[Game]) -> Vec<(usize, f64)> {
+        let n_agents = self.config.n_agents();
+        let dim = obs_dim(n_agents);
+        let x_c = self.geometry.conflict_point;
+        let lane_width = self.config.scenario.lane_width;
+        let mut rows: Vec<(usize, usize, usize)> = Vec::new(); // (game, member, car)
+        let mut obs: Vec<f32> = Vec::new();
+        let mut scenes = Vec::with_capacity(games.len());
+        let mut claimed = HashSet::new();
+        let mut neighbors = Vec::new();
+        for (gi, game) in games.iter().enumerate() {
+            let scene = Scene {
+                vehicles: game
+                    .members
+                    .iter()
+                    .map(|&(j, _)| Vehicle {
+                        x: cars[j].x,
+                        y: if cars[j].on_ramp { -lane_width } else { 0.0 },
+                        v: cars[j].v,
+                        phi: 0.0,
+                        on_ramp: cars[j].on_ramp,
+                    })
+                    .collect(),
+            };
+            let mut nb = Vec::new();
+            find_neighbors(&scene, &mut self.order, &mut nb);
+            let ego_car = &cars[game.members[0].0];
+            if let Some(record) = self.egos.get_mut(&ego_car.id) {
+                record.stats.update(&scene, ego_car.accel, self.dt);
+            }
+            if self.kind != ControllerKind::Sumo {
+                for (m, &(j, slot)) in game.members.iter().enumerate() {
+                    let drive =
+                        m == 0 || (self.kind == ControllerKind::Mpg && self.may_drive_player(&cars[j].id));
+                    if drive && claimed.insert(j) {
+                        let start = obs.len();
+                        obs.resize(start + dim, 0.0);
+                        observe_as(x_c, &scene, m, slot, &nb[m], &mut obs[start..]);
+                        rows.push((gi, m, j));
+                    }
+                }
+            }
+            scenes.push(scene);
+            neighbors.push(nb);
+        }
+        let Some(policy) = self.policy.as_mut().filter(|_| !rows.is_empty()) else {
+            return Vec::new();
+        };
+        let mut raw = vec![0.0f32; rows.len()];
+        policy.act(&obs, rows.len(), &mut raw);
+        rows.iter()
+            .zip(raw)
+            .map(|(&(gi, m, j), a)| {
+                let nb: &Neighbors = &neighbors[gi][m];
+                let a = applied_action(
+                    &self.config,
+                    self.config.sim.feasibility,
+                    &scenes[gi],
+                    m,
+                    nb,
+                    f64::from(a),
+                );
+                (j, a)
+            })
+            .collect()
+    }
+
+    fn may_drive_player(&self, id: &str) -> bool {
+        match self.geometry.players {
+            PlayerControl::All => true,
+            PlayerControl::Controllable => self
+                .types
+                .get(id)
+                .is_some_and(|t| self.geometry.controllable_types.contains(t)),
+        }
+    }
+
+    /// The egos seen, in id order.
+    pub fn finish(self) -> Vec<EgoRecord> {
+        self.egos.into_values().collect()
+    }
+}
+
+/// One ego's game: `(index into cars, player slot)`, the ego first with slot 0.
+#[derive(Debug, Clone)]
+struct Game {
+    members: Vec<(usize, usize)>,
+}

@@ -1,0 +1,119 @@
+//! Merge geometry of a SUMO network (`sumo_nets/*/merge.toml`): where the conflict point is,
+//! which lanes are the ramp and the target lane, which vehicle types mpgdrive may drive.
+//!
+//! Positions are the network x coordinate of a vehicle's centre: the freeway must run along
+//! +x (both bundled networks do; `netconvert --offset.disable-normalization` keeps the
+//! coordinates of the plain XML sources).
+
+use crate::config::{ConfigError, check, finite, load_toml, non_negative};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Which players of an ego's game the MPG policy drives besides the ego.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PlayerControl {
+    /// All eight players (the game of the paper: every player on the shared policy).
+    All,
+    /// Only players whose vehicle type is controllable.
+    Controllable,
+}
+
+/// The contents of `merge.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MergeGeometry {
+    /// Network x of the conflict point (m).
+    pub conflict_point: f64,
+    /// A controllable ramp vehicle becomes an ego once its centre passes this x (m).
+    pub control_from: f64,
+    /// Control of a merged ego ends this far past the conflict point (m).
+    pub release_after: f64,
+    /// Lanes of the ramp and of the acceleration lane (egos drive here before merging).
+    pub ramp_lanes: Vec<String>,
+    /// Lanes of the target lane (players drive here; an ego merges into one).
+    pub target_lanes: Vec<String>,
+    /// Vehicle types mpgdrive may drive as egos.
+    pub controllable_types: Vec<String>,
+    /// Which players the MPG policy drives.
+    pub players: PlayerControl,
+}
+
+impl MergeGeometry {
+    /// Reads and checks a `merge.toml`.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let g: MergeGeometry = load_toml(path)?;
+        g.validate()?;
+        Ok(g)
+    }
+
+    /// Range checks that need no network.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        finite("conflict_point", self.conflict_point)?;
+        finite("control_from", self.control_from)?;
+        non_negative("release_after", self.release_after)?;
+        check(
+            "control_from",
+            self.control_from < self.conflict_point,
+            format!(
+                "{} must lie before conflict_point {}",
+                self.control_from, self.conflict_point
+            ),
+        )?;
+        for (key, list) in [
+            ("ramp_lanes", &self.ramp_lanes),
+            ("target_lanes", &self.target_lanes),
+            ("controllable_types", &self.controllable_types),
+        ] {
+            check(key, !list.is_empty(), "must not be empty".into())?;
+        }
+        Ok(())
+    }
+
+    /// Checks every lane id against the network's lanes and names the ones that exist.
+    pub fn check_lanes(&self, network_lanes: &[String]) -> Result<(), ConfigError> {
+        for (key, list) in [
+            ("ramp_lanes", &self.ramp_lanes),
+            ("target_lanes", &self.target_lanes),
+        ] {
+            if let Some(bad) = list.iter().find(|l| !network_lanes.contains(l)) {
+                let existing: Vec<&str> = network_lanes
+                    .iter()
+                    .filter(|l| !l.starts_with(':'))
+                    .map(String::as_str)
+                    .collect();
+                return Err(ConfigError::Invalid {
+                    key: key.into(),
+                    message: format!(
+                        "lane `{bad}` is not in the network; its lanes are: {}",
+                        existing.join(", ")
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether a lane is a ramp lane.
+    pub fn is_ramp(&self, lane: &str) -> bool {
+        self.ramp_lanes.iter().any(|l| l == lane)
+    }
+
+    /// Whether a lane is a target lane.
+    pub fn is_target(&self, lane: &str) -> bool {
+        self.target_lanes.iter().any(|l| l == lane)
+    }
+
+    /// The target lane next to ramp lane `lane` on the same edge (index + 1), if it is one.
+    pub fn merge_lane(&self, lane: &str) -> Option<(String, i32)> {
+        let (edge, index) = split_lane_id(lane)?;
+        let next = format!("{edge}_{}", index + 1);
+        self.is_target(&next).then_some((next, index + 1))
+    }
+}
+
+/// Splits a SUMO lane id `<edge>_<index>` into its edge and index.
+pub fn split_lane_id(lane: &str) -> Option<(&str, i32)> {
+    let (edge, index) = lane.rsplit_once('_')?;
+    Some((edge, index.parse().ok()?))
+}
