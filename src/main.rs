@@ -12,7 +12,7 @@ use mpgdrive::sim::Driver;
 use mpgdrive::sim::rollout::{DriverActor, RolloutOptions, rollout};
 use mpgdrive::sim::sampler::sample_scenes;
 use mpgdrive::train::{Mode, TrainError, TrainRun, train};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -40,8 +40,13 @@ struct Common {
     threads: Option<usize>,
 }
 
+mod cosim_cmd;
+
 #[derive(Subcommand)]
 enum Command {
+    /// Co-simulate with SUMO: a trained policy drives the ramp egos (and, for mpg, their
+    /// players) in SUMO traffic; compares the mpg, sarl and sumo controllers.
+    Cosim(cosim_cmd::CosimArgs),
     /// Simulate a batch of merge episodes with non-learning drivers and print the ego metrics.
     Demo {
         #[command(flatten)]
@@ -151,13 +156,46 @@ fn usage(message: impl Into<String>) -> anyhow::Error {
 #[error("{0}")]
 struct UsageMessage(String);
 
+/// Prints to stdout, ending quietly on a closed pipe.
+fn print(text: &str) -> Result<()> {
+    outln!("{text}");
+    Ok(())
+}
+
+/// One policy from a file or a directory of seeds: `seed`, or else the lowest seed.
+fn pick_policy(path: &Path, seed: Option<u64>, n_agents: usize) -> Result<mpgdrive::policy::PolicyNet> {
+    let mut policies = load_policies(path, n_agents)?;
+    policies.sort_by_key(|(_, side)| side.seed);
+    let index = match seed {
+        None => 0,
+        Some(s) => policies
+            .iter()
+            .position(|(_, side)| side.seed == s)
+            .ok_or_else(|| usage(format!("{}: no policy of seed {s}", path.display())))?,
+    };
+    Ok(policies.swap_remove(index).0)
+}
+
+/// Whether an error is about SUMO (exit code 2: its message says what to fix).
+#[cfg(feature = "sumo")]
+fn sumo_error(e: &anyhow::Error) -> bool {
+    e.downcast_ref::<mpgdrive::sumo::SumoError>().is_some()
+        || e.downcast_ref::<mpgdrive::sumo::cosim::CosimError>().is_some()
+}
+
+#[cfg(not(feature = "sumo"))]
+fn sumo_error(_: &anyhow::Error) -> bool {
+    false
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            let bad_input = e.downcast_ref::<ConfigError>().is_some()
+            let bad_input = sumo_error(&e)
+                || e.downcast_ref::<ConfigError>().is_some()
                 || e.downcast_ref::<UsageMessage>().is_some()
                 || matches!(
                     e.downcast_ref::<EvalError>(),
@@ -185,6 +223,7 @@ fn load(common: &Common) -> Result<(Config, u64, usize)> {
 
 fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
+        Command::Cosim(args) => cosim_cmd::run(args),
         Command::Demo {
             common,
             scenarios,

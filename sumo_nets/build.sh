@@ -1,5 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates the .net.xml files of sumo_nets/ from their plain XML sources (make nets).
+# The networks are straight along +x with zero-radius junctions and no internal links, so a
+# vehicle's network x is its distance along the road (as in the internal simulator) also
+# across junctions; --offset.disable-normalization keeps the coordinates of the sources.
 set -euo pipefail
 cd "$(dirname "$0")"
 export SUMO_HOME="${SUMO_HOME:-/usr/share/sumo}"
@@ -7,7 +10,8 @@ build() { # dir prefix
     (cd "$1" && netconvert --node-files "$2.nod.xml" --edge-files "$2.edg.xml" \
         --connection-files "$2.con.xml" --output-file "$2.net.xml" \
         --no-turnarounds true --offset.disable-normalization true \
-        --default.junctions.radius 0 --output.street-names false --no-warnings true)
+        --default.junctions.radius 0 --no-internal-links true --output.street-names false \
+        --no-warnings true)
 }
 build single_lane_merge merge
 build i80_merge i80

@@ -76,19 +76,19 @@ fn a_bad_configuration_is_an_error_not_a_panic() {
 fn an_added_vehicle_drives_at_the_commanded_speed() {
     let _turn = SUMO.lock().unwrap_or_else(|e| e.into_inner());
     let mut sumo = Sumo::start(Backend::Libsumo, &args(MERGE)).expect("start");
-    sumo.add_route("test_route", &["merge", "out"]).unwrap();
+    sumo.add_route("test_route", &["main", "merge", "out"]).unwrap();
     sumo.add_vehicle(&NewVehicle {
         id: "probe",
         route: "test_route",
         vtype: "ctrl",
-        lane: "1",
+        lane: "0",
         pos: "105",
         speed: "10",
     })
     .unwrap();
     sumo.step().unwrap();
     let s = sumo.vehicle("probe").unwrap();
-    assert_eq!(sumo.lane_id("probe").unwrap(), "merge_1");
+    assert_eq!(sumo.lane_id("probe").unwrap(), "main_0");
     assert_eq!(sumo.type_id("probe").unwrap(), "ctrl");
     // Front bumper at lane position 105 on a lane starting at x = -200.
     assert!(

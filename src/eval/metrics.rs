@@ -8,7 +8,7 @@
 //! - average ego speed, average `|u|` of the ego's applied acceleration, average jerk
 //!   magnitude `|u_t - u_{t-1}| / dt`, over the steps simulated.
 
-use crate::sim::rollout::EpisodeOutcome;
+use crate::sim::rollout::{EgoStats, EpisodeOutcome};
 use serde::Serialize;
 
 /// Metrics of one episode.
@@ -31,15 +31,21 @@ pub struct EpisodeMetrics {
 impl EpisodeMetrics {
     /// Metrics of an outcome.
     pub fn of(o: &EpisodeOutcome) -> Self {
-        let steps = o.ego.steps.max(1) as f64;
         let collision = o.collision.is_some_and(|c| c.a == 0 || c.b == 0);
+        Self::from_stats(&o.ego, collision, o.ego_merged_at.is_some())
+    }
+
+    /// Metrics from the ego's running statistics, whether it collided and whether it merged
+    /// (passed the conflict point).
+    pub fn from_stats(ego: &EgoStats, collision: bool, merged: bool) -> Self {
+        let steps = ego.steps.max(1) as f64;
         EpisodeMetrics {
             collision,
-            failure: !collision && o.ego_merged_at.is_none(),
-            min_distance: o.ego.min_distance,
-            mean_speed: o.ego.sum_speed / steps,
-            mean_abs_accel: o.ego.sum_abs_accel / steps,
-            mean_abs_jerk: o.ego.sum_abs_jerk / (steps - 1.0).max(1.0),
+            failure: !collision && !merged,
+            min_distance: ego.min_distance,
+            mean_speed: ego.sum_speed / steps,
+            mean_abs_accel: ego.sum_abs_accel / steps,
+            mean_abs_jerk: ego.sum_abs_jerk / (steps - 1.0).max(1.0),
         }
     }
 }

@@ -20,6 +20,16 @@
 //! # Ok(()) }
 //! ```
 //!
+//! **Integration.** The internal simulator moves a vehicle with its current speed and then
+//! changes the speed (eq. 1: `x' = x + v dt`, `v' = v + a dt`); SUMO's default (Euler) update
+//! moves it with its new speed (`x' = x + v' dt`). So that positions agree exactly, SUMO's
+//! speed runs one step behind the model's: the controller keeps the model speed
+//! `v = v_SUMO + a_prev dt` of every vehicle it drove last step, observes and projects with it,
+//! and sets SUMO's next speed to it (`setSpeed(v)`), which moves the vehicle by `v dt` as eq. 1
+//! does. SUMO's ballistic update (`x' = x + (v + v') dt / 2`) would leave `a dt^2 / 2` per step,
+//! which the policy's feedback amplified to metres within 10 s in the agreement test. The ego's
+//! acceleration in the metrics is the applied action (SUMO's own for the `sumo` controller).
+//!
 //! Vehicles the controller drives get SUMO speed mode `speed_mode` and lane-change mode 0
 //! (no lane changes of their own; with speed mode 0 SUMO would not merge an ego anyway). An
 //! ego whose centre reaches the conflict point is treated as merged, as in the internal
@@ -140,6 +150,10 @@ pub struct Controller {
     speed_mode: i32,
     dt: f64,
     types: HashMap<String, String>,
+    /// The ramp or target lane each vehicle was last seen on (for junction internal lanes).
+    lane_class: HashMap<String, String>,
+    /// Each active ego's players and their slots, fixed at pick-up.
+    players: HashMap<String, Vec<(String, usize)>>,
     egos: BTreeMap<String, EgoRecord>,
     controlled: HashSet<String>,
     colliding: HashSet<(String, String)>,
@@ -148,6 +162,8 @@ pub struct Controller {
     /// Steps where SUMO did not reach the commanded speed (by more than 0.01 m/s).
     pub overridden: u64,
     commanded: HashMap<String, f64>,
+    /// Acceleration applied last step per driven vehicle: model speed = SUMO speed + a dt.
+    applied: HashMap<String, f64>,
     timing: ControllerTiming,
     order: Vec<usize>,
 }
@@ -170,12 +186,15 @@ impl Controller {
             speed_mode,
             dt,
             types: HashMap::new(),
+            lane_class: HashMap::new(),
+            players: HashMap::new(),
             egos: BTreeMap::new(),
             controlled: HashSet::new(),
             colliding: HashSet::new(),
             collisions: Vec::new(),
             overridden: 0,
             commanded: HashMap::new(),
+            applied: HashMap::new(),
             timing: ControllerTiming::default(),
             order: Vec::new(),
         }
@@ -208,15 +227,17 @@ impl Controller {
         let games = self.form_games(sumo, &cars, time)?;
         let commands = self.decide(&cars, &games);
         let mut driven = HashSet::new();
+        let mut applied = HashMap::new();
         for (car, accel) in commands {
             let c = &cars[car];
             if self.controlled.insert(c.id.clone()) {
                 sumo.set_speed_mode(&c.id, self.speed_mode)?;
                 sumo.set_lane_change_mode(&c.id, 0)?;
             }
-            let speed = (c.v + accel * self.dt).max(0.0);
-            sumo.set_speed(&c.id, speed)?;
-            self.commanded.insert(c.id.clone(), speed);
+            // SUMO's next speed is the model's current one (module docs: one-step lag).
+            sumo.set_speed(&c.id, c.v)?;
+            self.commanded.insert(c.id.clone(), c.v);
+            applied.insert(c.id.clone(), accel);
             if let (Some(lane), false) = (&c.ramp_lane, c.on_ramp) {
                 if let Some((_, index)) = self.geometry.merge_lane(lane) {
                     sumo.change_lane(&c.id, index, 1.0)?;
@@ -224,6 +245,7 @@ impl Controller {
             }
             driven.insert(c.id.clone());
         }
+        self.applied = applied;
         let released: Vec<String> = self.controlled.difference(&driven).cloned().collect();
         for id in released {
             self.controlled.remove(&id);
@@ -271,6 +293,7 @@ impl Controller {
     fn drop_vehicle(&mut self, id: &str, teleported: bool) {
         self.controlled.remove(id);
         self.commanded.remove(id);
+        self.applied.remove(id);
         if let Some(ego) = self.egos.get_mut(id) {
             if !ego.finished() && teleported {
                 ego.lost = !ego.merged;
@@ -293,113 +316,134 @@ impl Controller {
     fn read_cars(&mut self, sumo: &Sumo) -> Result<Vec<Car>, SumoError> {
         let x_c = self.geometry.conflict_point;
         let mut cars = Vec::new();
+        let mut classes = HashMap::new();
         for id in sumo.vehicle_ids()? {
             let lane = sumo.lane_id(&id)?;
+            // On a junction's internal lane a vehicle keeps the class of the lane it came from.
+            let lane = match self.lane_class.get(&id) {
+                Some(last) if lane.starts_with(':') => last.clone(),
+                _ => lane,
+            };
             let ramp = self.geometry.is_ramp(&lane);
             if !ramp && !self.geometry.is_target(&lane) {
                 continue;
             }
+            classes.insert(id.clone(), lane.clone());
             let s = sumo.vehicle(&id)?;
             let heading = (90.0 - s.angle).to_radians();
             let x = s.x - 0.5 * s.length * heading.cos();
+            let (v, accel) = match self.applied.get(&id) {
+                Some(&a) => (s.speed + a * self.dt, a),
+                None => (s.speed, s.accel),
+            };
             cars.push(Car {
                 on_ramp: ramp && x < x_c,
                 ramp_lane: ramp.then_some(lane),
                 id,
                 x,
-                v: s.speed,
-                accel: s.accel,
+                v,
+                accel,
             });
         }
+        self.lane_class = classes;
         Ok(cars)
     }
 
-    /// Picks up new egos, releases merged ones, and forms each ego's game: indices into
-    /// `cars`, the ego first, then up to `n_leaders` leaders (front-most first) and up to
-    /// `n_followers` followers (nearest first), with their player slots.
+    /// Picks up new egos (choosing their players once, as the initial state of an internal
+    /// episode does), releases merged ones, and returns each active ego's game: indices into
+    /// `cars` with player slots, the ego first. A player that left the target lane or the
+    /// network drops out; no player is added later.
     fn form_games(&mut self, sumo: &Sumo, cars: &[Car], time: f64) -> Result<Vec<Game>, SumoError> {
-        let g = &self.geometry;
-        let mut by_x: Vec<usize> = (0..cars.len()).filter(|&i| !cars[i].on_ramp).collect();
-        by_x.sort_by(|&a, &b| cars[a].x.total_cmp(&cars[b].x));
+        let index: HashMap<&str, usize> = cars.iter().enumerate().map(|(k, c)| (c.id.as_str(), k)).collect();
         let mut games = Vec::new();
         for (k, c) in cars.iter().enumerate() {
             let tracked = self.egos.get(&c.id);
             if tracked.is_some_and(EgoRecord::finished) {
                 continue;
             }
-            if tracked.is_none() {
-                if !c.on_ramp || c.x < g.control_from {
-                    continue;
-                }
-                let vtype = match self.types.get(&c.id) {
-                    Some(t) => t.clone(),
-                    None => {
-                        let t = sumo.type_id(&c.id)?;
-                        self.types.insert(c.id.clone(), t.clone());
-                        t
-                    }
-                };
-                if !g.controllable_types.contains(&vtype) {
-                    continue;
-                }
-                self.egos.insert(
-                    c.id.clone(),
-                    EgoRecord {
-                        id: c.id.clone(),
-                        start: time,
-                        end: None,
-                        merged: false,
-                        collision: false,
-                        lost: false,
-                        stats: EgoStats::default(),
-                    },
-                );
+            if tracked.is_none() && !self.pick_up(sumo, cars, k, time)? {
+                continue;
             }
+            let g = &self.geometry;
             let ego = self.egos.get_mut(&c.id).expect("tracked");
             if !c.on_ramp {
                 ego.merged = true;
                 if c.x >= g.conflict_point + g.release_after {
                     ego.end = Some(time);
+                    self.players.remove(&c.id);
                     continue;
                 }
             }
-            let (n_l, n_f) = (self.config.scenario.n_leaders, self.config.scenario.n_followers);
-            let ahead: Vec<usize> = by_x
-                .iter()
-                .copied()
-                .filter(|&j| j != k && cars[j].x > c.x)
-                .collect();
-            let behind: Vec<usize> = by_x
-                .iter()
-                .rev()
-                .copied()
-                .filter(|&j| j != k && cars[j].x <= c.x)
-                .collect();
-            let leaders = &ahead[..ahead.len().min(n_l)];
-            let followers = &behind[..behind.len().min(n_f)];
-            if g.players == PlayerControl::Controllable {
-                for &j in leaders.iter().chain(followers) {
-                    if !self.types.contains_key(&cars[j].id) {
-                        let t = sumo.type_id(&cars[j].id)?;
-                        self.types.insert(cars[j].id.clone(), t);
-                    }
-                }
-            }
             let mut members = vec![(k, 0)];
-            // Leaders front-most first fill slots n_l - len + 1 ..= n_l (the nearest is n_l).
-            let first_slot = n_l - leaders.len() + 1;
-            members.extend(
-                leaders
-                    .iter()
-                    .rev()
-                    .enumerate()
-                    .map(|(r, &j)| (j, first_slot + r)),
-            );
-            members.extend(followers.iter().enumerate().map(|(r, &j)| (j, n_l + 1 + r)));
+            members.extend(self.players[&c.id].iter().filter_map(|(id, slot)| {
+                let &j = index.get(id.as_str())?;
+                (!cars[j].on_ramp).then_some((j, *slot))
+            }));
             games.push(Game { members });
         }
         games.sort_by(|a, b| cars[b.members[0].0].x.total_cmp(&cars[a.members[0].0].x));
         Ok(games)
+    }
+
+    /// Starts tracking ramp vehicle `k` if it is controllable and in the control zone, with
+    /// its players: up to `n_leaders` target-lane vehicles ahead (front-most first, in slots
+    /// ending at `n_leaders`) and up to `n_followers` behind (nearest first).
+    fn pick_up(&mut self, sumo: &Sumo, cars: &[Car], k: usize, time: f64) -> Result<bool, SumoError> {
+        let c = &cars[k];
+        if !c.on_ramp || c.x < self.geometry.control_from || !self.is_controllable(sumo, &c.id)? {
+            return Ok(false);
+        }
+        let mut target: Vec<&Car> = cars.iter().filter(|o| !o.on_ramp).collect();
+        target.sort_by(|a, b| a.x.total_cmp(&b.x));
+        let (n_l, n_f) = (self.config.scenario.n_leaders, self.config.scenario.n_followers);
+        let ahead: Vec<&Car> = target.iter().copied().filter(|o| o.x > c.x).take(n_l).collect();
+        let behind: Vec<&Car> = target
+            .iter()
+            .rev()
+            .copied()
+            .filter(|o| o.x <= c.x)
+            .take(n_f)
+            .collect();
+        let first_slot = n_l - ahead.len() + 1;
+        let mut players: Vec<(String, usize)> = ahead
+            .iter()
+            .rev()
+            .enumerate()
+            .map(|(r, o)| (o.id.clone(), first_slot + r))
+            .collect();
+        players.extend(
+            behind
+                .iter()
+                .enumerate()
+                .map(|(r, o)| (o.id.clone(), n_l + 1 + r)),
+        );
+        if self.geometry.players == PlayerControl::Controllable {
+            for (id, _) in &players {
+                self.is_controllable(sumo, id)?;
+            }
+        }
+        self.players.insert(c.id.clone(), players);
+        self.egos.insert(
+            c.id.clone(),
+            EgoRecord {
+                id: c.id.clone(),
+                start: time,
+                end: None,
+                merged: false,
+                collision: false,
+                lost: false,
+                stats: EgoStats::default(),
+            },
+        );
+        Ok(true)
+    }
+
+    /// Whether a vehicle's type is controllable (types are asked once per vehicle).
+    fn is_controllable(&mut self, sumo: &Sumo, id: &str) -> Result<bool, SumoError> {
+        if !self.types.contains_key(id) {
+            self.types.insert(id.to_owned(), sumo.type_id(id)?);
+        }
+        Ok(self.geometry.controllable_types.contains(&self.types[id]))
     }
 
     /// Updates the egos' metrics and returns `(car, applied acceleration)` for every vehicle

@@ -57,6 +57,7 @@ pub struct Api {
         *const c_char,
         *const c_char,
     ) -> c_int,
+    pub move_to: unsafe extern "C" fn(*const c_char, *const c_char, f64) -> c_int,
     pub route_add: unsafe extern "C" fn(*const c_char, *const *const c_char, usize) -> c_int,
 }
 
@@ -84,6 +85,7 @@ macro_rules! api {
             set_lane_change_mode: $m::set_lane_change_mode,
             change_lane: $m::change_lane,
             vehicle_add: $m::vehicle_add,
+            move_to: $m::move_to,
             route_add: $m::route_add,
         }
     };

@@ -7,6 +7,9 @@ use std::ffi::{CStr, CString, c_char, c_int};
 use std::marker::PhantomData;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// libsumo::INVALID_DOUBLE_VALUE: what SUMO reports for a vehicle not in the network.
+const INVALID_DOUBLE: f64 = -1_073_741_824.0;
+
 /// True while a [`Sumo`] handle exists (libsumo holds one simulation per process).
 static LIVE: AtomicBool = AtomicBool::new(false);
 
@@ -299,6 +302,12 @@ impl Sumo {
         // SAFETY: `cid` is a valid C string and `s` is valid for a write.
         let rc = unsafe { (self.api.vehicle_state)(cid.as_ptr(), &mut s) };
         self.check("vehicle state", rc)?;
+        if s.x == INVALID_DOUBLE {
+            return Err(SumoError::Sumo {
+                call: "vehicle state",
+                message: format!("vehicle '{id}' is loaded but not in the network (not inserted yet)"),
+            });
+        }
         Ok(VehicleState {
             x: s.x,
             y: s.y,
@@ -392,6 +401,17 @@ impl Sumo {
         self.with_id("changeLane", id, |p| {
             // SAFETY: the pointer is a valid C string for the call.
             unsafe { f(p, lane, duration) }
+        })
+    }
+
+    /// Moves a vehicle to `pos` (front bumper, m) on `lane`; a vehicle added but not yet
+    /// inserted (for example refused by SUMO's insertion checks) is inserted there.
+    pub fn move_to(&mut self, id: &str, lane: &str, pos: f64) -> Result<(), SumoError> {
+        let f = self.api.move_to;
+        let lane = cstring(lane)?;
+        self.with_id("moveTo", id, |p| {
+            // SAFETY: both pointers are valid C strings for the call.
+            unsafe { f(p, lane.as_ptr(), pos) }
         })
     }
 

@@ -7,6 +7,8 @@
 #[cfg(feature = "sumo")]
 pub mod controller;
 #[cfg(feature = "sumo")]
+pub mod cosim;
+#[cfg(feature = "sumo")]
 pub mod ffi;
 pub mod geometry;
 #[cfg(feature = "sumo")]

@@ -186,6 +186,10 @@ int MPG_FN(vehicle_add)(const char* id, const char* route, const char* type, con
     return guarded([&] { api::Vehicle::add(id, route, type, depart, lane, pos, speed); });
 }
 
+int MPG_FN(move_to)(const char* id, const char* lane, double pos) {
+    return guarded([&] { api::Vehicle::moveTo(id, lane, pos); });
+}
+
 int MPG_FN(route_add)(const char* id, const char* const* edges, size_t count) {
     return guarded([&] { api::Route::add(id, std::vector<std::string>(edges, edges + count)); });
 }

@@ -91,6 +91,8 @@ int MPG_FN(set_lane_change_mode)(const char* id, int mode);
 int MPG_FN(change_lane)(const char* id, int lane_index, double duration);
 int MPG_FN(vehicle_add)(const char* id, const char* route, const char* type, const char* depart,
                         const char* lane, const char* pos, const char* speed);
+/* Moves a vehicle to `pos` on `lane`; inserts a loaded vehicle that has not departed yet. */
+int MPG_FN(move_to)(const char* id, const char* lane, double pos);
 int MPG_FN(route_add)(const char* id, const char* const* edges, size_t count);
 
 #ifdef __cplusplus

@@ -1,0 +1,181 @@
+//! `mpgdrive cosim`: the command over [`mpgdrive::sumo::cosim`].
+
+use anyhow::{Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+
+/// Arguments of `mpgdrive cosim`.
+#[derive(Args)]
+pub struct CosimArgs {
+    /// Configuration file (TOML): vehicle limits, dt, feasibility rules of the policy.
+    #[arg(long, default_value = "configs/paper.toml")]
+    config: PathBuf,
+    /// SUMO configuration to run.
+    #[arg(long)]
+    sumocfg: PathBuf,
+    /// Merge geometry (default: merge.toml next to the .sumocfg).
+    #[arg(long)]
+    merge: Option<PathBuf>,
+    /// MARL policy: a file or a directory of seeds.
+    #[arg(long, default_value = "policies/mpg")]
+    policy: PathBuf,
+    /// Single-agent policy: a file or a directory of seeds.
+    #[arg(long, default_value = "policies/sarl")]
+    sarl_policy: PathBuf,
+    /// Which seed's policy to use from a directory (default: the lowest).
+    #[arg(long)]
+    policy_seed: Option<u64>,
+    /// Controllers to compare, comma-separated: mpg, sarl, sumo.
+    #[arg(long, value_delimiter = ',', default_value = "mpg,sarl,sumo")]
+    controllers: Vec<ControllerArg>,
+    /// SUMO's random seed (logged with the results).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Simulated duration (s).
+    #[arg(long, default_value_t = 900.0)]
+    end: f64,
+    /// SUMO speed mode of controlled vehicles (0: the policy's speed exactly; 31: SUMO's checks).
+    #[arg(long, default_value_t = 0)]
+    speed_mode: i32,
+    /// Watch in sumo-gui (through libtraci).
+    #[arg(long, conflicts_with = "attach")]
+    gui: bool,
+    /// Join a SUMO already running with --remote-port PORT --num-clients N.
+    #[arg(long)]
+    attach: Option<u16>,
+    /// Client order when attached.
+    #[arg(long, default_value_t = 1, requires = "attach")]
+    order: i32,
+    /// Output directory: cosim.md, cosim.json, egos.csv and SUMO's tripinfo/SSM files.
+    #[arg(long, default_value = "results/cosim")]
+    out: PathBuf,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
+    json: bool,
+    /// Print microseconds per step: SUMO's step and the controller's own work.
+    #[arg(long)]
+    bench: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ControllerArg {
+    Mpg,
+    Sarl,
+    Sumo,
+}
+
+#[cfg(not(feature = "sumo"))]
+pub fn run(_args: CosimArgs) -> Result<std::process::ExitCode> {
+    Err(crate::usage(
+        "this mpgdrive was built without the `sumo` feature: rebuild with default features",
+    ))
+}
+
+#[cfg(feature = "sumo")]
+pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
+    use mpgdrive::config::Config;
+    use mpgdrive::sumo::MergeGeometry;
+    use mpgdrive::sumo::controller::ControllerKind;
+    use mpgdrive::sumo::cosim::{self, CosimSettings, Launch, run_controller};
+
+    let config = Config::load(&args.config)?;
+    if !args.sumocfg.is_file() {
+        return Err(crate::usage(format!(
+            "--sumocfg {}: no such file",
+            args.sumocfg.display()
+        )));
+    }
+    if !(args.end.is_finite() && args.end > 0.0) {
+        return Err(crate::usage(format!(
+            "--end {}: must be a positive number of seconds",
+            args.end
+        )));
+    }
+    let merge = args
+        .merge
+        .clone()
+        .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
+    let geometry = MergeGeometry::load(&merge)?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let settings = CosimSettings {
+        sumocfg: args.sumocfg.clone(),
+        geometry,
+        seed: args.seed,
+        end: args.end,
+        speed_mode: args.speed_mode,
+        launch: match (args.gui, args.attach) {
+            (true, _) => Launch::Gui,
+            (false, Some(port)) => Launch::Attach {
+                port,
+                order: args.order,
+            },
+            (false, None) => Launch::Libsumo,
+        },
+        out: args.out.clone(),
+    };
+    let mut runs = Vec::new();
+    for c in &args.controllers {
+        let (kind, policy) = match c {
+            ControllerArg::Mpg => (ControllerKind::Mpg, Some(&args.policy)),
+            ControllerArg::Sarl => (ControllerKind::Sarl, Some(&args.sarl_policy)),
+            ControllerArg::Sumo => (ControllerKind::Sumo, None),
+        };
+        let net = match policy {
+            Some(p) => Some(crate::pick_policy(p, args.policy_seed, config.n_agents())?),
+            None => None,
+        };
+        eprintln!(
+            "cosim: {} on {} (seed {}, {} s)",
+            kind.name(),
+            args.sumocfg.display(),
+            args.seed,
+            args.end
+        );
+        match run_controller(&config, &settings, kind, net) {
+            Ok(run) => runs.push(run),
+            Err(e) => {
+                write_outputs(&args.out, &runs)?;
+                return Err(e).context(format!(
+                    "{} run (results so far in {})",
+                    kind.name(),
+                    args.out.display()
+                ));
+            }
+        }
+    }
+    write_outputs(&args.out, &runs)?;
+    if args.json {
+        crate::print(&serde_json::to_string_pretty(&runs)?)?;
+    } else {
+        crate::print(&format!(
+            "Co-simulation: {} (SUMO seed {}, {} s)\n\n{}",
+            args.sumocfg.display(),
+            args.seed,
+            args.end,
+            cosim::markdown(&runs)
+        ))?;
+    }
+    if args.bench {
+        for r in &runs {
+            eprintln!(
+                "bench {}: {} steps, SUMO step {:.1} us, controller {:.1} us, {:.0} steps/s",
+                r.controller.name(),
+                r.steps,
+                r.sumo_us_per_step,
+                r.controller_us_per_step,
+                1e6 / (r.sumo_us_per_step + r.controller_us_per_step)
+            );
+        }
+    }
+    Ok(std::process::ExitCode::SUCCESS)
+}
+
+#[cfg(feature = "sumo")]
+fn write_outputs(out: &std::path::Path, runs: &[mpgdrive::sumo::cosim::ControllerRun]) -> Result<()> {
+    use mpgdrive::atomic;
+    use mpgdrive::sumo::cosim;
+    atomic::write(&out.join("cosim.md"), cosim::markdown(runs))?;
+    atomic::write(&out.join("cosim.json"), serde_json::to_string_pretty(runs)?)?;
+    atomic::write(&out.join("egos.csv"), cosim::egos_csv(runs))?;
+    Ok(())
+}

@@ -1,0 +1,457 @@
+//! `mpgdrive cosim`: runs controllers on the same SUMO configuration and seed, one after the
+//! other in this process, and compares them.
+//!
+//! Per ego (a controllable ramp vehicle, tracked from `control_from` until released), with
+//! the definitions of `mpgdrive eval`: collision (SUMO reported one involving the ego while
+//! tracked), failure (no collision, and the ego never reached the target lane: it stopped,
+//! teleported or vanished), minimum centre distance to its players, average speed,
+//! acceleration magnitude (SUMO's reported acceleration) and jerk magnitude. Egos still driving
+//! when the run ends are reported as unfinished and left out of the averages. SUMO's own:
+//! collision events from getCollisions (once per pair and event), the SSM device's minimum
+//! TTC and maximum DRAC per ego, and tripinfo travel time and time loss.
+
+use crate::config::Config;
+use crate::eval::metrics::{EpisodeMetrics, Summary};
+use crate::policy::network::PolicyNet;
+use crate::sumo::controller::{CollisionEvent, Controller, ControllerKind, EgoRecord};
+use crate::sumo::geometry::MergeGeometry;
+use crate::sumo::{Backend, Sumo, SumoError};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How mpgdrive reaches SUMO.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Launch {
+    /// libsumo in this process (headless, the default).
+    Libsumo,
+    /// sumo-gui started through libtraci.
+    Gui,
+    /// Join a running SUMO (`--num-clients N`) on localhost:port as client `order`.
+    Attach {
+        /// TCP port.
+        port: u16,
+        /// Client order (1 steps first).
+        order: i32,
+    },
+}
+
+/// Everything a co-sim run needs besides the controller.
+#[derive(Debug, Clone)]
+pub struct CosimSettings {
+    /// The SUMO configuration.
+    pub sumocfg: PathBuf,
+    /// Merge geometry of the network.
+    pub geometry: MergeGeometry,
+    /// SUMO's random seed.
+    pub seed: u64,
+    /// Simulated duration (s).
+    pub end: f64,
+    /// SUMO speed mode of the controlled vehicles.
+    pub speed_mode: i32,
+    /// How SUMO runs.
+    pub launch: Launch,
+    /// Directory for SUMO's tripinfo and SSM outputs (per controller).
+    pub out: PathBuf,
+}
+
+/// Errors of a co-sim run.
+#[derive(Debug, thiserror::Error)]
+pub enum CosimError {
+    /// SUMO failed.
+    #[error(transparent)]
+    Sumo(#[from] SumoError),
+    /// The merge geometry does not fit the network.
+    #[error("{path}: {source}")]
+    Geometry {
+        /// merge.toml.
+        path: String,
+        /// What is wrong.
+        source: crate::config::ConfigError,
+    },
+    /// SUMO's step length differs from the policy's.
+    #[error(
+        "SUMO's step length is {sumo} s but the policy was trained with sim.dt = {config} s: set <step-length value=\"{config}\"/>"
+    )]
+    StepLength {
+        /// SUMO's.
+        sumo: f64,
+        /// The configuration's.
+        config: f64,
+    },
+    /// A SUMO output could not be read.
+    #[error("reading SUMO output {path}: {message}")]
+    Output {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+/// Metrics of one ego.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EgoResult {
+    /// SUMO vehicle id.
+    pub id: String,
+    /// Tracking began (s).
+    pub start: f64,
+    /// Tracking ended (s); none when unfinished.
+    pub end: Option<f64>,
+    /// Released, collided or lost before the run ended.
+    pub finished: bool,
+    /// The six metrics of `mpgdrive eval`.
+    pub metrics: EpisodeMetrics,
+    /// SSM minimum TTC over the ego's conflicts (s).
+    pub ssm_min_ttc: Option<f64>,
+    /// SSM maximum DRAC (m/s^2).
+    pub ssm_max_drac: Option<f64>,
+    /// Trip duration (s).
+    pub travel_time: Option<f64>,
+    /// Time lost to driving below the ideal speed (s).
+    pub time_loss: Option<f64>,
+}
+
+/// One controller's run.
+#[derive(Debug, Clone, Serialize)]
+pub struct ControllerRun {
+    /// Controller.
+    pub controller: ControllerKind,
+    /// SUMO seed.
+    pub seed: u64,
+    /// Simulated time (s).
+    pub simulated: f64,
+    /// Steps run.
+    pub steps: u64,
+    /// Egos, finished or not.
+    pub egos: Vec<EgoResult>,
+    /// Averages over finished egos.
+    pub summary: Summary,
+    /// Egos still driving when the run ended.
+    pub unfinished: usize,
+    /// SUMO collision events (once per pair and event).
+    pub collisions: Vec<CollisionEvent>,
+    /// Steps where SUMO did not apply the commanded speed.
+    pub speed_overrides: u64,
+    /// Mean SSM minimum TTC over finished egos that had one (s).
+    pub mean_min_ttc: Option<f64>,
+    /// Mean SSM maximum DRAC (m/s^2).
+    pub mean_max_drac: Option<f64>,
+    /// Mean travel time of finished egos (s).
+    pub mean_travel_time: Option<f64>,
+    /// Mean time loss of finished egos (s).
+    pub mean_time_loss: Option<f64>,
+    /// Wall time in SUMO's step (us per step).
+    pub sumo_us_per_step: f64,
+    /// Wall time in the controller (us per step).
+    pub controller_us_per_step: f64,
+}
+
+fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path) -> Vec<String> {
+    let mut args: Vec<String> = vec![
+        binary.into(),
+        "-c".into(),
+        settings.sumocfg.display().to_string(),
+        "--seed".into(),
+        settings.seed.to_string(),
+        "--end".into(),
+        settings.end.to_string(),
+        "--no-warnings".into(),
+        "true".into(),
+        "--no-step-log".into(),
+        "true".into(),
+        "--tripinfo-output".into(),
+        tripinfo.display().to_string(),
+        "--device.ssm.file".into(),
+        ssm.display().to_string(),
+    ];
+    if binary == "sumo-gui" {
+        args.extend([
+            "--start".into(),
+            "true".into(),
+            "--quit-on-end".into(),
+            "true".into(),
+        ]);
+    }
+    args
+}
+
+/// Runs one controller over the whole simulation.
+pub fn run_controller(
+    config: &Config,
+    settings: &CosimSettings,
+    kind: ControllerKind,
+    policy: Option<PolicyNet>,
+) -> Result<ControllerRun, CosimError> {
+    let tripinfo = settings.out.join(format!("tripinfo-{}.xml", kind.name()));
+    let ssm = settings.out.join(format!("ssm-{}.xml", kind.name()));
+    let mut sumo = match settings.launch {
+        Launch::Libsumo => Sumo::start(Backend::Libsumo, &sumo_args(settings, "sumo", &tripinfo, &ssm))?,
+        Launch::Gui => Sumo::start(Backend::Traci, &sumo_args(settings, "sumo-gui", &tripinfo, &ssm))?,
+        Launch::Attach { port, order } => Sumo::attach(port, order)?,
+    };
+    let dt = sumo.delta_t()?;
+    if (dt - config.sim.dt).abs() > 1e-9 {
+        return Err(CosimError::StepLength {
+            sumo: dt,
+            config: config.sim.dt,
+        });
+    }
+    settings
+        .geometry
+        .check_lanes(&sumo.lane_ids()?)
+        .map_err(|source| CosimError::Geometry {
+            path: settings
+                .sumocfg
+                .with_file_name("merge.toml")
+                .display()
+                .to_string(),
+            source,
+        })?;
+    let mut controller = Controller::new(
+        config.clone(),
+        settings.geometry.clone(),
+        kind,
+        policy,
+        settings.speed_mode,
+    );
+    let mut sumo_us = 0.0;
+    let mut steps = 0u64;
+    while sumo.time()? < settings.end - 0.5 * dt && sumo.min_expected()? > 0 {
+        let t0 = Instant::now();
+        sumo.step()?;
+        sumo_us += t0.elapsed().as_secs_f64() * 1e6;
+        controller.step(&mut sumo)?;
+        steps += 1;
+    }
+    let simulated = sumo.time()?;
+    sumo.close()?;
+    let timing = controller.timing();
+    let collisions = controller.collisions.clone();
+    let speed_overrides = controller.overridden;
+    let records = controller.finish();
+    let (ssm_by_ego, trips) = match settings.launch {
+        // The server owns the outputs of a shared simulation.
+        Launch::Attach { .. } => (HashMap::new(), HashMap::new()),
+        _ => (read_ssm(&ssm)?, read_tripinfo(&tripinfo)?),
+    };
+    let per_step = |us: f64| us / steps.max(1) as f64;
+    Ok(summarise(
+        kind,
+        settings.seed,
+        simulated,
+        steps,
+        &records,
+        &ssm_by_ego,
+        &trips,
+        collisions,
+        speed_overrides,
+        per_step(sumo_us),
+        per_step(timing.total_us),
+    ))
+}
+
+#[allow(clippy::too_many_arguments)]
+fn summarise(
+    controller: ControllerKind,
+    seed: u64,
+    simulated: f64,
+    steps: u64,
+    records: &[EgoRecord],
+    ssm: &HashMap<String, (Option<f64>, Option<f64>)>,
+    trips: &HashMap<String, (f64, f64)>,
+    collisions: Vec<CollisionEvent>,
+    speed_overrides: u64,
+    sumo_us_per_step: f64,
+    controller_us_per_step: f64,
+) -> ControllerRun {
+    let egos: Vec<EgoResult> = records
+        .iter()
+        .map(|r| {
+            let (ttc, drac) = ssm.get(&r.id).copied().unwrap_or((None, None));
+            let trip = trips.get(&r.id);
+            EgoResult {
+                id: r.id.clone(),
+                start: r.start,
+                end: r.end,
+                finished: r.finished(),
+                metrics: EpisodeMetrics::from_stats(&r.stats, r.collision, r.merged),
+                ssm_min_ttc: ttc,
+                ssm_max_drac: drac,
+                travel_time: trip.map(|t| t.0),
+                time_loss: trip.map(|t| t.1),
+            }
+        })
+        .collect();
+    let finished: Vec<&EgoResult> = egos.iter().filter(|e| e.finished).collect();
+    let metrics: Vec<EpisodeMetrics> = finished.iter().map(|e| e.metrics).collect();
+    let mean_of = |f: &dyn Fn(&EgoResult) -> Option<f64>| {
+        let v: Vec<f64> = finished.iter().filter_map(|e| f(e)).collect();
+        (!v.is_empty()).then(|| v.iter().sum::<f64>() / v.len() as f64)
+    };
+    ControllerRun {
+        controller,
+        seed,
+        simulated,
+        steps,
+        summary: Summary::of(&metrics),
+        unfinished: egos.len() - finished.len(),
+        mean_min_ttc: mean_of(&|e| e.ssm_min_ttc),
+        mean_max_drac: mean_of(&|e| e.ssm_max_drac),
+        mean_travel_time: mean_of(&|e| e.travel_time),
+        mean_time_loss: mean_of(&|e| e.time_loss),
+        egos,
+        collisions,
+        speed_overrides,
+        sumo_us_per_step,
+        controller_us_per_step,
+    }
+}
+
+fn read_xml(path: &Path) -> Result<String, CosimError> {
+    std::fs::read_to_string(path).map_err(|e| CosimError::Output {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+fn parse_xml<'a>(path: &Path, text: &'a str) -> Result<roxmltree::Document<'a>, CosimError> {
+    roxmltree::Document::parse(text).map_err(|e| CosimError::Output {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+/// Per ego: the smallest minTTC and the largest maxDRAC over its SSM conflicts ("NA" skipped).
+pub fn read_ssm(path: &Path) -> Result<HashMap<String, (Option<f64>, Option<f64>)>, CosimError> {
+    let text = read_xml(path)?;
+    let doc = parse_xml(path, &text)?;
+    let mut out: HashMap<String, (Option<f64>, Option<f64>)> = HashMap::new();
+    for conflict in doc.descendants().filter(|n| n.has_tag_name("conflict")) {
+        let Some(ego) = conflict.attribute("ego") else {
+            continue;
+        };
+        let entry = out.entry(ego.to_owned()).or_default();
+        for child in conflict.children().filter(|n| n.is_element()) {
+            let value = child.attribute("value").and_then(|v| v.parse::<f64>().ok());
+            match (child.tag_name().name(), value) {
+                ("minTTC", Some(v)) => entry.0 = Some(entry.0.map_or(v, |m| m.min(v))),
+                ("maxDRAC", Some(v)) => entry.1 = Some(entry.1.map_or(v, |m| m.max(v))),
+                _ => {}
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Per vehicle: (duration, timeLoss) from a tripinfo file.
+pub fn read_tripinfo(path: &Path) -> Result<HashMap<String, (f64, f64)>, CosimError> {
+    let text = read_xml(path)?;
+    let doc = parse_xml(path, &text)?;
+    Ok(doc
+        .descendants()
+        .filter(|n| n.has_tag_name("tripinfo"))
+        .filter_map(|n| {
+            let num = |k| n.attribute(k).and_then(|v: &str| v.parse::<f64>().ok());
+            Some((
+                n.attribute("id")?.to_owned(),
+                (num("duration")?, num("timeLoss")?),
+            ))
+        })
+        .collect())
+}
+
+fn opt(x: Option<f64>) -> String {
+    x.map_or("-".into(), |v| format!("{v:.4}"))
+}
+
+/// A Markdown table, one column per controller.
+pub fn markdown(runs: &[ControllerRun]) -> String {
+    let mut s = String::from("| Metric |");
+    for r in runs {
+        s += &format!(" {} |", r.controller.name());
+    }
+    s += "\n|---|";
+    s += &"---|".repeat(runs.len());
+    s += "\n";
+    let mut row = |name: &str, f: &dyn Fn(&ControllerRun) -> String| {
+        s += &format!("| {name} |");
+        for r in runs {
+            s += &format!(" {} |", f(r));
+        }
+        s += "\n";
+    };
+    let m = |r: &ControllerRun| r.summary;
+    row("Egos (finished / unfinished)", &|r| {
+        format!("{} / {}", r.summary.episodes, r.unfinished)
+    });
+    row("Collision rate", &|r| {
+        format!("{}/{}", m(r).collisions, m(r).episodes)
+    });
+    row("Failure rate", &|r| {
+        format!("{}/{}", m(r).failures, m(r).episodes)
+    });
+    row("Average minimum inter-vehicle distance (m)", &|r| {
+        format!("{:.4}", m(r).min_distance)
+    });
+    row("Average ego vehicle speed (m/s)", &|r| {
+        format!("{:.4}", m(r).mean_speed)
+    });
+    row("Average acceleration magnitude (m/s^2)", &|r| {
+        format!("{:.4}", m(r).mean_abs_accel)
+    });
+    row("Average jerk magnitude (m/s^3)", &|r| {
+        format!("{:.4}", m(r).mean_abs_jerk)
+    });
+    row("SUMO collisions (all / with a controlled vehicle)", &|r| {
+        format!(
+            "{} / {}",
+            r.collisions.len(),
+            r.collisions.iter().filter(|c| c.controlled).count()
+        )
+    });
+    row("SSM minimum TTC, mean over egos (s)", &|r| opt(r.mean_min_ttc));
+    row("SSM maximum DRAC, mean over egos (m/s^2)", &|r| {
+        opt(r.mean_max_drac)
+    });
+    row("Ego travel time (s)", &|r| opt(r.mean_travel_time));
+    row("Ego time loss (s)", &|r| opt(r.mean_time_loss));
+    row("Commanded speeds SUMO did not apply (steps)", &|r| {
+        r.speed_overrides.to_string()
+    });
+    s
+}
+
+/// Per-ego CSV over all runs.
+pub fn egos_csv(runs: &[ControllerRun]) -> String {
+    let mut s = String::from(
+        "controller,seed,id,start,end,finished,collision,failure,min_distance,mean_speed,mean_abs_accel,mean_abs_jerk,ssm_min_ttc,ssm_max_drac,travel_time,time_loss\n",
+    );
+    let o = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
+    for r in runs {
+        for e in &r.egos {
+            let m = &e.metrics;
+            s += &format!(
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                r.controller.name(),
+                r.seed,
+                e.id,
+                e.start,
+                o(e.end),
+                u8::from(e.finished),
+                u8::from(m.collision),
+                u8::from(m.failure),
+                m.min_distance,
+                m.mean_speed,
+                m.mean_abs_accel,
+                m.mean_abs_jerk,
+                o(e.ssm_min_ttc),
+                o(e.ssm_max_drac),
+                o(e.travel_time),
+                o(e.time_loss)
+            );
+        }
+    }
+    s
+}
