@@ -157,12 +157,14 @@ fn usage(message: impl Into<String>) -> anyhow::Error {
 struct UsageMessage(String);
 
 /// Prints to stdout, ending quietly on a closed pipe.
+#[cfg_attr(not(feature = "sumo"), allow(dead_code))]
 fn print(text: &str) -> Result<()> {
     outln!("{text}");
     Ok(())
 }
 
 /// One policy from a file or a directory of seeds: `seed`, or else the lowest seed.
+#[cfg_attr(not(feature = "sumo"), allow(dead_code))]
 fn pick_policy(path: &Path, seed: Option<u64>, n_agents: usize) -> Result<mpgdrive::policy::PolicyNet> {
     let mut policies = load_policies(path, n_agents)?;
     policies.sort_by_key(|(_, side)| side.seed);

@@ -11,7 +11,7 @@ use mpgdrive::policy::file::load;
 use mpgdrive::sim::rollout::{Driver, Recording, RolloutOptions, rollout};
 use mpgdrive::sim::sampler::{Purpose, purpose_seed, sample_scenes};
 use mpgdrive::sim::state::Scene;
-use mpgdrive::sumo::{Backend, Controller, ControllerKind, MergeGeometry, NewVehicle, Sumo};
+use mpgdrive::sumo::{Backend, ControlModes, Controller, ControllerKind, MergeGeometry, NewVehicle, Sumo};
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -90,7 +90,13 @@ fn sumo_ego_track(scene: &Scene, steps: usize) -> Vec<f64> {
         sumo.set_speed_mode(&id, 0).unwrap();
         sumo.set_speed(&id, v.v).unwrap();
     }
-    let mut controller = Controller::new(config.clone(), geometry, ControllerKind::Mpg, Some(net), 0);
+    let mut controller = Controller::new(
+        config.clone(),
+        geometry,
+        ControllerKind::Mpg,
+        Some(net),
+        ControlModes::EXACT,
+    );
     let mut xs = Vec::new();
     for _ in 0..=steps {
         sumo.step().unwrap();

@@ -102,3 +102,20 @@ fn an_added_vehicle_drives_at_the_commanded_speed() {
     assert!((t.speed - 12.0).abs() < 1e-9, "{t:?}");
     assert!((t.accel - 20.0).abs() < 1e-6, "(12 - 10) / 0.1 = 20 m/s^2: {t:?}");
 }
+
+#[test]
+fn libtraci_runs_sumo_in_another_process_with_the_same_calls() {
+    // The --gui path: the same shim over libtraci, here with the headless binary.
+    let _turn = SUMO.lock().unwrap_or_else(|e| e.into_inner());
+    let mut sumo = Sumo::start(Backend::Traci, &args(MERGE)).expect("start sumo through libtraci");
+    assert_eq!(sumo.backend_name(), "traci");
+    for _ in 0..10 {
+        sumo.step().unwrap();
+    }
+    assert!((sumo.time().unwrap() - 1.0).abs() < 1e-9);
+    match sumo.vehicle("no-such-car") {
+        Err(SumoError::Sumo { message, .. }) => assert!(message.contains("no-such-car"), "{message}"),
+        other => panic!("expected SUMO's error, got {other:?}"),
+    }
+    sumo.close().expect("close");
+}

@@ -7,11 +7,11 @@
 //! Another Rust program drives it the same way `mpgdrive cosim` does:
 //!
 //! ```no_run
-//! # use mpgdrive::sumo::{Backend, Sumo, MergeGeometry, Controller, ControllerKind};
+//! # use mpgdrive::sumo::{Backend, Sumo, MergeGeometry, Controller, ControllerKind, ControlModes};
 //! # fn run(config: mpgdrive::Config, geometry: MergeGeometry, policy: mpgdrive::policy::PolicyNet)
 //! # -> Result<(), mpgdrive::sumo::SumoError> {
 //! let mut sumo = Sumo::start(Backend::Libsumo, &["sumo".into(), "-c".into(), "x.sumocfg".into()])?;
-//! let mut controller = Controller::new(config, geometry, ControllerKind::Mpg, Some(policy), 0);
+//! let mut controller = Controller::new(config, geometry, ControllerKind::Mpg, Some(policy), ControlModes::SAFE);
 //! while sumo.min_expected()? > 0 {
 //!     sumo.step()?;
 //!     controller.step(&mut sumo)?;
@@ -30,10 +30,17 @@
 //! which the policy's feedback amplified to metres within 10 s in the agreement test. The ego's
 //! acceleration in the metrics is the applied action (SUMO's own for the `sumo` controller).
 //!
-//! Vehicles the controller drives get SUMO speed mode `speed_mode` and lane-change mode 0
-//! (no lane changes of their own; with speed mode 0 SUMO would not merge an ego anyway). An
-//! ego whose centre reaches the conflict point is treated as merged, as in the internal
-//! simulator, and told to change to the target lane next to it. Control ends when the ego is
+//! Vehicles the controller drives get the SUMO speed and lane-change modes of
+//! [`ControlModes`]: by default speed mode 25 (SUMO's safe speed towards any leader, but not
+//! its acceleration limits: the policy's actions up to g apply) and lane-change mode 256 (no
+//! lane changes of their own; a requested change waits while it would collide at once).
+//! [`ControlModes::EXACT`] (0 and 0) applies every action and lane change as the internal
+//! simulator does. The games hold one ramp vehicle and target-lane players, so SUMO's safety
+//! checks are what stands between a controlled vehicle and the traffic outside its game
+//! (other ramp vehicles queued ahead, vehicles cutting in from the next lane); the run counts
+//! the steps where SUMO did not apply a commanded speed. An ego whose centre reaches the
+//! conflict point is treated as merged, as in the internal simulator, and told to change to
+//! the target lane next to it. Control ends when the ego is
 //! `release_after` metres past the conflict point on the target lane; SUMO then drives it
 //! again (speed mode 31, lane-change mode 1621, SUMO's defaults). Vehicles that leave,
 //! teleport or vanish are dropped from the games at once.
@@ -54,6 +61,28 @@ use std::time::Instant;
 pub const SUMO_SPEED_MODE: i32 = 31;
 /// SUMO's default lane-change mode.
 pub const SUMO_LANE_CHANGE_MODE: i32 = 1621;
+
+/// SUMO speed and lane-change modes of the vehicles the controller drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct ControlModes {
+    /// Speed mode bits (1 safe speed, 2 max accel, 4 max decel, 8 right of way, 16 red light).
+    pub speed: i32,
+    /// Lane-change mode bits (256: a TraCI lane change avoids immediate collisions).
+    pub lane_change: i32,
+}
+
+impl ControlModes {
+    /// The default: SUMO's safe speed and collision-free requested lane changes.
+    pub const SAFE: ControlModes = ControlModes {
+        speed: 25,
+        lane_change: 256,
+    };
+    /// No SUMO checks: every action and lane change applies as in the internal simulator.
+    pub const EXACT: ControlModes = ControlModes {
+        speed: 0,
+        lane_change: 0,
+    };
+}
 
 /// Who drives the egos (and players).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -86,7 +115,9 @@ struct Car {
     x: f64,
     v: f64,
     accel: f64,
-    /// On the ramp by the internal simulator's rule (ramp lane and before the conflict point).
+    /// On the ramp by the internal simulator's rule (on a ramp lane and before the conflict
+    /// point), or still on a ramp lane because SUMO held back the lane change asked for last
+    /// step (lane-change mode 256: it would have collided).
     on_ramp: bool,
     /// Ramp lane id while on a ramp lane.
     ramp_lane: Option<String>,
@@ -147,7 +178,7 @@ pub struct Controller {
     geometry: MergeGeometry,
     kind: ControllerKind,
     policy: Option<PolicyNet>,
-    speed_mode: i32,
+    modes: ControlModes,
     dt: f64,
     types: HashMap<String, String>,
     /// The ramp or target lane each vehicle was last seen on (for junction internal lanes).
@@ -164,6 +195,8 @@ pub struct Controller {
     commanded: HashMap<String, f64>,
     /// Acceleration applied last step per driven vehicle: model speed = SUMO speed + a dt.
     applied: HashMap<String, f64>,
+    /// Vehicles asked last step to change to the target lane.
+    lane_change_requested: HashSet<String>,
     timing: ControllerTiming,
     order: Vec<usize>,
 }
@@ -175,7 +208,7 @@ impl Controller {
         geometry: MergeGeometry,
         kind: ControllerKind,
         policy: Option<PolicyNet>,
-        speed_mode: i32,
+        modes: ControlModes,
     ) -> Self {
         let dt = config.sim.dt;
         Controller {
@@ -183,7 +216,7 @@ impl Controller {
             geometry,
             kind,
             policy,
-            speed_mode,
+            modes,
             dt,
             types: HashMap::new(),
             lane_class: HashMap::new(),
@@ -195,6 +228,7 @@ impl Controller {
             overridden: 0,
             commanded: HashMap::new(),
             applied: HashMap::new(),
+            lane_change_requested: HashSet::new(),
             timing: ControllerTiming::default(),
             order: Vec::new(),
         }
@@ -210,47 +244,57 @@ impl Controller {
         let started = Instant::now();
         let time = sumo.time()?;
         self.note_collisions(sumo, time)?;
-        for id in sumo.teleporting()? {
-            self.drop_vehicle(&id, true);
-        }
-        let cars = self.read_cars(sumo)?;
-        let present: HashSet<&str> = cars.iter().map(|c| c.id.as_str()).collect();
-        let all: HashSet<String> = sumo.vehicle_ids()?.into_iter().collect();
-        for (id, ego) in self.egos.iter_mut() {
-            if !ego.finished() && !all.contains(id) {
-                ego.lost = !ego.merged;
-                ego.end.get_or_insert(time);
-                self.controlled.remove(id);
+        let teleporting = sumo.teleporting()?;
+        let gone: HashSet<String> = sumo
+            .arrived()?
+            .into_iter()
+            .chain(teleporting.iter().cloned())
+            .collect();
+        for id in &gone {
+            self.controlled.remove(id);
+            self.commanded.remove(id);
+            self.applied.remove(id);
+            self.lane_change_requested.remove(id);
+            if let Some(ego) = self.egos.get_mut(id).filter(|e| !e.finished()) {
+                ego.lost = !ego.merged || teleporting.contains(id);
+                ego.end = Some(time);
             }
         }
-        self.check_overrides(&cars);
+        let cars = self.read_cars(sumo, &gone)?;
         let games = self.form_games(sumo, &cars, time)?;
         let commands = self.decide(&cars, &games);
         let mut driven = HashSet::new();
         let mut applied = HashMap::new();
+        let mut requested = HashSet::new();
         for (car, accel) in commands {
             let c = &cars[car];
             if self.controlled.insert(c.id.clone()) {
-                sumo.set_speed_mode(&c.id, self.speed_mode)?;
-                sumo.set_lane_change_mode(&c.id, 0)?;
+                sumo.set_speed_mode(&c.id, self.modes.speed)?;
+                sumo.set_lane_change_mode(&c.id, self.modes.lane_change)?;
             }
             // SUMO's next speed is the model's current one (module docs: one-step lag).
             sumo.set_speed(&c.id, c.v)?;
             self.commanded.insert(c.id.clone(), c.v);
             applied.insert(c.id.clone(), accel);
-            if let (Some(lane), false) = (&c.ramp_lane, c.on_ramp) {
+            if let Some(lane) = c
+                .ramp_lane
+                .as_ref()
+                .filter(|_| c.x >= self.geometry.conflict_point)
+            {
                 if let Some((_, index)) = self.geometry.merge_lane(lane) {
                     sumo.change_lane(&c.id, index, 1.0)?;
+                    requested.insert(c.id.clone());
                 }
             }
             driven.insert(c.id.clone());
         }
         self.applied = applied;
+        self.lane_change_requested = requested;
         let released: Vec<String> = self.controlled.difference(&driven).cloned().collect();
         for id in released {
             self.controlled.remove(&id);
             self.commanded.remove(&id);
-            if present.contains(id.as_str()) || all.contains(&id) {
+            if !gone.contains(&id) {
                 sumo.set_speed(&id, -1.0)?;
                 sumo.set_speed_mode(&id, SUMO_SPEED_MODE)?;
                 sumo.set_lane_change_mode(&id, SUMO_LANE_CHANGE_MODE)?;
@@ -290,54 +334,48 @@ impl Controller {
         Ok(())
     }
 
-    fn drop_vehicle(&mut self, id: &str, teleported: bool) {
-        self.controlled.remove(id);
-        self.commanded.remove(id);
-        self.applied.remove(id);
-        if let Some(ego) = self.egos.get_mut(id) {
-            if !ego.finished() && teleported {
-                ego.lost = !ego.merged;
-            }
-        }
-    }
-
-    /// Counts commanded speeds SUMO did not apply (its safety checks, with a non-zero speed mode).
-    fn check_overrides(&mut self, cars: &[Car]) {
-        for c in cars {
-            if let Some(&v) = self.commanded.get(&c.id) {
-                if (c.v - v).abs() > 0.01 {
-                    self.overridden += 1;
-                }
-            }
-        }
-    }
-
     /// Ramp and target-lane vehicles, centre positions.
-    fn read_cars(&mut self, sumo: &Sumo) -> Result<Vec<Car>, SumoError> {
-        let x_c = self.geometry.conflict_point;
-        let mut cars = Vec::new();
-        let mut classes = HashMap::new();
-        for id in sumo.vehicle_ids()? {
-            let lane = sumo.lane_id(&id)?;
-            // On a junction's internal lane a vehicle keeps the class of the lane it came from.
-            let lane = match self.lane_class.get(&id) {
-                Some(last) if lane.starts_with(':') => last.clone(),
-                _ => lane,
-            };
-            let ramp = self.geometry.is_ramp(&lane);
-            if !ramp && !self.geometry.is_target(&lane) {
-                continue;
+    fn read_cars(&mut self, sumo: &Sumo, gone: &HashSet<String>) -> Result<Vec<Car>, SumoError> {
+        let mut found: Vec<(String, String)> = Vec::new();
+        for lane in self.geometry.ramp_lanes.iter().chain(&self.geometry.target_lanes) {
+            found.extend(sumo.lane_vehicles(lane)?.into_iter().map(|id| (id, lane.clone())));
+        }
+        // A vehicle crossing a junction is on an internal lane for a step: it keeps the class of
+        // the lane it came from.
+        let listed: HashSet<&str> = found.iter().map(|(id, _)| id.as_str()).collect();
+        let crossing: Vec<(String, String)> = self
+            .lane_class
+            .iter()
+            .filter(|(id, _)| !listed.contains(id.as_str()) && !gone.contains(*id))
+            .map(|(id, lane)| (id.clone(), lane.clone()))
+            .collect();
+        for (id, lane) in crossing {
+            if sumo.lane_id(&id)?.starts_with(':') {
+                found.push((id, lane));
             }
-            classes.insert(id.clone(), lane.clone());
+        }
+        let x_c = self.geometry.conflict_point;
+        let mut cars = Vec::with_capacity(found.len());
+        self.lane_class.clear();
+        for (id, lane) in found {
+            let ramp = self.geometry.is_ramp(&lane);
             let s = sumo.vehicle(&id)?;
             let heading = (90.0 - s.angle).to_radians();
             let x = s.x - 0.5 * s.length * heading.cos();
+            if self
+                .commanded
+                .get(&id)
+                .is_some_and(|&cmd| (s.speed - cmd).abs() > 0.01)
+            {
+                self.overridden += 1;
+            }
             let (v, accel) = match self.applied.get(&id) {
                 Some(&a) => (s.speed + a * self.dt, a),
                 None => (s.speed, s.accel),
             };
+            self.lane_class.insert(id.clone(), lane.clone());
             cars.push(Car {
-                on_ramp: ramp && x < x_c,
+                on_ramp: ramp && (x < x_c || self.lane_change_requested.contains(&id)),
                 ramp_lane: ramp.then_some(lane),
                 id,
                 x,
@@ -345,7 +383,6 @@ impl Controller {
                 accel,
             });
         }
-        self.lane_class = classes;
         Ok(cars)
     }
 

@@ -13,7 +13,7 @@
 use crate::config::Config;
 use crate::eval::metrics::{EpisodeMetrics, Summary};
 use crate::policy::network::PolicyNet;
-use crate::sumo::controller::{CollisionEvent, Controller, ControllerKind, EgoRecord};
+use crate::sumo::controller::{CollisionEvent, ControlModes, Controller, ControllerKind, EgoRecord};
 use crate::sumo::geometry::MergeGeometry;
 use crate::sumo::{Backend, Sumo, SumoError};
 use serde::Serialize;
@@ -44,12 +44,14 @@ pub struct CosimSettings {
     pub sumocfg: PathBuf,
     /// Merge geometry of the network.
     pub geometry: MergeGeometry,
+    /// Where the geometry came from (for messages).
+    pub geometry_path: PathBuf,
     /// SUMO's random seed.
     pub seed: u64,
     /// Simulated duration (s).
     pub end: f64,
-    /// SUMO speed mode of the controlled vehicles.
-    pub speed_mode: i32,
+    /// SUMO speed and lane-change modes of the controlled vehicles.
+    pub modes: ControlModes,
     /// How SUMO runs.
     pub launch: Launch,
     /// Directory for SUMO's tripinfo and SSM outputs (per controller).
@@ -63,11 +65,12 @@ pub enum CosimError {
     #[error(transparent)]
     Sumo(#[from] SumoError),
     /// The merge geometry does not fit the network.
-    #[error("{path}: {source}")]
+    #[error("{path}")]
     Geometry {
         /// merge.toml.
         path: String,
         /// What is wrong.
+        #[source]
         source: crate::config::ConfigError,
     },
     /// SUMO's step length differs from the policy's.
@@ -214,7 +217,7 @@ pub fn run_controller(
         settings.geometry.clone(),
         kind,
         policy,
-        settings.speed_mode,
+        settings.modes,
     );
     let mut sumo_us = 0.0;
     let mut steps = 0u64;
@@ -252,6 +255,23 @@ pub fn run_controller(
     ))
 }
 
+/// SUMO alone on the same configuration, seed and duration, through libsumo with nothing but
+/// `step` (the `--bench` baseline): microseconds per step.
+pub fn plain_sumo_us_per_step(settings: &CosimSettings) -> Result<f64, CosimError> {
+    let null = Path::new("/dev/null");
+    let mut sumo = Sumo::start(Backend::Libsumo, &sumo_args(settings, "sumo", null, null))?;
+    let dt = sumo.delta_t()?;
+    let started = Instant::now();
+    let mut steps = 0u64;
+    while sumo.time()? < settings.end - 0.5 * dt && sumo.min_expected()? > 0 {
+        sumo.step()?;
+        steps += 1;
+    }
+    let us = started.elapsed().as_secs_f64() * 1e6 / steps.max(1) as f64;
+    sumo.close()?;
+    Ok(us)
+}
+
 #[allow(clippy::too_many_arguments)]
 fn summarise(
     controller: ControllerKind,
@@ -259,7 +279,7 @@ fn summarise(
     simulated: f64,
     steps: u64,
     records: &[EgoRecord],
-    ssm: &HashMap<String, (Option<f64>, Option<f64>)>,
+    ssm: &HashMap<String, SsmExtremes>,
     trips: &HashMap<String, (f64, f64)>,
     collisions: Vec<CollisionEvent>,
     speed_overrides: u64,
@@ -323,11 +343,14 @@ fn parse_xml<'a>(path: &Path, text: &'a str) -> Result<roxmltree::Document<'a>, 
     })
 }
 
+/// SSM extremes of one vehicle: (minimum TTC in s, maximum DRAC in m/s^2).
+pub type SsmExtremes = (Option<f64>, Option<f64>);
+
 /// Per ego: the smallest minTTC and the largest maxDRAC over its SSM conflicts ("NA" skipped).
-pub fn read_ssm(path: &Path) -> Result<HashMap<String, (Option<f64>, Option<f64>)>, CosimError> {
+pub fn read_ssm(path: &Path) -> Result<HashMap<String, SsmExtremes>, CosimError> {
     let text = read_xml(path)?;
     let doc = parse_xml(path, &text)?;
-    let mut out: HashMap<String, (Option<f64>, Option<f64>)> = HashMap::new();
+    let mut out: HashMap<String, SsmExtremes> = HashMap::new();
     for conflict in doc.descendants().filter(|n| n.has_tag_name("conflict")) {
         let Some(ego) = conflict.attribute("ego") else {
             continue;

@@ -40,6 +40,7 @@ pub struct Api {
     pub collisions: unsafe extern "C" fn(*mut usize) -> c_int,
     pub collision: unsafe extern "C" fn(usize, *mut MpgCollision) -> c_int,
     pub lane_length: unsafe extern "C" fn(*const c_char, *mut f64) -> c_int,
+    pub lane_vehicles: unsafe extern "C" fn(*const c_char, *mut *const c_char, *mut usize) -> c_int,
     pub vehicle_state: unsafe extern "C" fn(*const c_char, *mut MpgVehicleState) -> c_int,
     pub vehicle_string: unsafe extern "C" fn(*const c_char, c_int, *mut *const c_char, *mut usize) -> c_int,
     pub vehicle_leader:
@@ -77,6 +78,7 @@ macro_rules! api {
             collisions: $m::collisions,
             collision: $m::collision,
             lane_length: $m::lane_length,
+            lane_vehicles: $m::lane_vehicles,
             vehicle_state: $m::vehicle_state,
             vehicle_string: $m::vehicle_string,
             vehicle_leader: $m::vehicle_leader,

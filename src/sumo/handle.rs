@@ -88,6 +88,11 @@ pub struct Sumo {
     _not_send: PhantomData<*const ()>,
 }
 
+/// Splits a shim list: items each terminated by NUL.
+fn split_list(joined: &str) -> Vec<String> {
+    joined.split_terminator('\0').map(str::to_owned).collect()
+}
+
 fn cstring(s: &str) -> Result<CString, SumoError> {
     CString::new(s).map_err(|_| SumoError::Nul(s.to_owned()))
 }
@@ -175,8 +180,17 @@ impl Sumo {
         let mut len = 0usize;
         // SAFETY: the out-pointers are valid for writes for the duration of the call.
         let rc = unsafe { (self.api.id_list)(which as c_int, &mut buf, &mut len) };
-        let joined = self.strings("id list", rc, buf, len)?;
-        Ok(joined.split_terminator('\0').map(str::to_owned).collect())
+        Ok(split_list(&self.strings("id list", rc, buf, len)?))
+    }
+
+    /// Vehicles on a lane after the last step.
+    pub fn lane_vehicles(&self, lane: &str) -> Result<Vec<String>, SumoError> {
+        let id = cstring(lane)?;
+        let mut buf = std::ptr::null();
+        let mut len = 0usize;
+        // SAFETY: `id` is a valid C string; the out-pointers are valid for writes.
+        let rc = unsafe { (self.api.lane_vehicles)(id.as_ptr(), &mut buf, &mut len) };
+        Ok(split_list(&self.strings("lane vehicles", rc, buf, len)?))
     }
 
     /// Advances one simulation step.

@@ -15,7 +15,7 @@ pub mod geometry;
 pub mod handle;
 
 #[cfg(feature = "sumo")]
-pub use controller::{Controller, ControllerKind, EgoRecord};
+pub use controller::{ControlModes, Controller, ControllerKind, EgoRecord};
 pub use geometry::MergeGeometry;
 #[cfg(feature = "sumo")]
 pub use handle::{Backend, Collision, NewVehicle, Sumo, VehicleState};

@@ -130,6 +130,10 @@ int MPG_FN(lane_length)(const char* lane, double* out) {
     return guarded([&] { *out = api::Lane::getLength(lane); });
 }
 
+int MPG_FN(lane_vehicles)(const char* lane, const char** buf, size_t* len) {
+    return guarded([&] { put_list(api::Lane::getLastStepVehicleIDs(lane), buf, len); });
+}
+
 int MPG_FN(vehicle_state)(const char* id, MpgVehicleState* out) {
     return guarded([&] {
         const std::string v(id);

@@ -82,6 +82,8 @@ int MPG_FN(id_list)(int which, const char** buf, size_t* len);
 int MPG_FN(collisions)(size_t* count);
 int MPG_FN(collision)(size_t index, MpgCollision* out);
 int MPG_FN(lane_length)(const char* lane, double* out);
+/* Vehicles on a lane after the last step, as an id list. */
+int MPG_FN(lane_vehicles)(const char* lane, const char** buf, size_t* len);
 int MPG_FN(vehicle_state)(const char* id, MpgVehicleState* out);
 int MPG_FN(vehicle_string)(const char* id, int which, const char** buf, size_t* len);
 int MPG_FN(vehicle_leader)(const char* id, double dist, const char** buf, size_t* len, double* gap);

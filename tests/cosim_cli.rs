@@ -1,0 +1,224 @@
+//! `mpgdrive cosim` end to end: the three controllers on the paper's merge, bad input refused
+//! with one message and exit code 2, and two mpgdrive clients sharing one SUMO.
+#![cfg(feature = "sumo")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+const CFG: &str = "sumo_nets/single_lane_merge/merge.sumocfg";
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_mpgdrive"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-cosim-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Exit code 2, one line on stderr containing every needle, no panic.
+fn assert_rejected(out: &Output, needles: &[&str]) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "stderr: {stderr}");
+    for needle in needles {
+        assert!(stderr.contains(needle), "{needle:?} not in {stderr:?}");
+    }
+    assert_eq!(stderr.trim_end().lines().count(), 1, "one message: {stderr:?}");
+    assert!(!stderr.contains("panicked"));
+}
+
+#[test]
+fn three_controllers_run_side_by_side_and_write_their_results() {
+    let out_dir = temp_dir("run");
+    let out = bin()
+        .args(["cosim", "--sumocfg", CFG, "--end", "60", "--json", "--out"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let runs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let names: Vec<&str> = runs
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["controller"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["mpg", "sarl", "sumo"]);
+    for r in runs.as_array().unwrap() {
+        // 300 ramp vehicles per hour: a 60 s run picks up a few egos.
+        assert!(!r["egos"].as_array().unwrap().is_empty(), "{r}");
+        assert_eq!(r["seed"], 0);
+        assert!((r["simulated"].as_f64().unwrap() - 60.0).abs() < 1e-9);
+    }
+    for file in [
+        "cosim.md",
+        "cosim.json",
+        "egos.csv",
+        "tripinfo-mpg.xml",
+        "ssm-sumo.xml",
+    ] {
+        assert!(out_dir.join(file).is_file(), "{file}");
+    }
+    let csv = std::fs::read_to_string(out_dir.join("egos.csv")).unwrap();
+    assert!(csv.starts_with("controller,seed,id,"));
+}
+
+#[test]
+fn a_lane_that_is_not_in_the_network_is_named_with_the_lanes_that_are() {
+    let dir = temp_dir("lane");
+    let merge = std::fs::read_to_string("sumo_nets/single_lane_merge/merge.toml")
+        .unwrap()
+        .replace("\"merge_1\"", "\"merge_7\"");
+    let path = dir.join("merge.toml");
+    std::fs::write(&path, merge).unwrap();
+    let out = bin()
+        .args([
+            "cosim",
+            "--sumocfg",
+            CFG,
+            "--controllers",
+            "sumo",
+            "--end",
+            "1",
+            "--merge",
+        ])
+        .arg(&path)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_rejected(&out, &["merge_7", "target_lanes", "merge_1", "ramp_0"]);
+}
+
+#[test]
+fn unknown_merge_keys_and_missing_files_are_refused() {
+    let dir = temp_dir("keys");
+    let path = dir.join("merge.toml");
+    std::fs::write(
+        &path,
+        std::fs::read_to_string("sumo_nets/single_lane_merge/merge.toml").unwrap() + "conflict_pont = 3\n",
+    )
+    .unwrap();
+    let run = |merge: &Path, cfg: &str| {
+        bin()
+            .args([
+                "cosim",
+                "--controllers",
+                "sumo",
+                "--end",
+                "1",
+                "--sumocfg",
+                cfg,
+                "--merge",
+            ])
+            .arg(merge)
+            .output()
+            .unwrap()
+    };
+    assert_rejected(&run(&path, CFG), &["conflict_pont"]);
+    assert_rejected(&run(&path, "sumo_nets/nowhere.sumocfg"), &["nowhere.sumocfg"]);
+}
+
+#[test]
+fn a_malformed_route_file_is_sumos_message_and_exit_2() {
+    let dir = temp_dir("routes");
+    let net = std::fs::canonicalize("sumo_nets/single_lane_merge/merge.net.xml").unwrap();
+    std::fs::write(
+        dir.join("bad.rou.xml"),
+        "<routes>\n  <vehicle id=\"x\" depart=\"0\">\n</routes>\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("bad.sumocfg"),
+        format!(
+            "<configuration><input><net-file value=\"{}\"/><route-files value=\"bad.rou.xml\"/></input>\
+             <time><step-length value=\"0.1\"/></time></configuration>\n",
+            net.display()
+        ),
+    )
+    .unwrap();
+    std::fs::copy("sumo_nets/single_lane_merge/merge.toml", dir.join("merge.toml")).unwrap();
+    let out = bin()
+        .args(["cosim", "--controllers", "sumo", "--end", "5", "--sumocfg"])
+        .arg(dir.join("bad.sumocfg"))
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("SUMO error"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// A free TCP port on localhost.
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+#[test]
+fn two_clients_share_one_sumo_and_the_first_detach_leaves_it_running() {
+    let port = free_port();
+    let mut server = Command::new("sumo")
+        .args([
+            "-c",
+            CFG,
+            "--no-step-log",
+            "true",
+            "--no-warnings",
+            "true",
+            "--num-clients",
+            "2",
+        ])
+        .args([
+            "--remote-port",
+            &port.to_string(),
+            "--tripinfo-output",
+            "/dev/null",
+        ])
+        .args(["--device.ssm.file", "/dev/null"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("sumo on the PATH");
+    let client = |order: &str, end: &str| {
+        bin()
+            .args([
+                "cosim",
+                "--sumocfg",
+                CFG,
+                "--controllers",
+                "sumo",
+                "--json",
+                "--attach",
+            ])
+            .args([&port.to_string(), "--order", order, "--end", end, "--out"])
+            .arg(temp_dir(&format!("attach{order}")))
+            .stderr(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let first = client("1", "20");
+    let second = client("2", "30");
+    let first = first.wait_with_output().unwrap();
+    let second = second.wait_with_output().unwrap();
+    let _ = server.wait();
+    for (out, end) in [(&first, 20.0), (&second, 30.0)] {
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let runs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let simulated = runs[0]["simulated"].as_f64().unwrap();
+        assert!(
+            (simulated - end).abs() < 1e-9,
+            "client ending at {end} saw {simulated}"
+        );
+    }
+}
