@@ -18,7 +18,7 @@ use std::sync::Mutex;
 static SUMO: Mutex<()> = Mutex::new(());
 
 const NET: &str = "sumo_nets/single_lane_merge";
-const POLICY: &str = "/tmp/train/mpg/seed0";
+const POLICY: &str = "policies/mpg/seed0";
 
 /// Where a vehicle whose centre is at `x` departs: (route, lane, position of the front bumper
 /// on the route's first edge). Edge starts: main and ramp -200, merge 100, out 200.

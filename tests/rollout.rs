@@ -116,6 +116,28 @@ fn a_collision_ends_the_episode_for_everyone() {
 }
 
 #[test]
+fn a_collision_between_other_players_is_not_the_egos_but_ends_its_episode() {
+    // Two target-lane players at constant speed, 20 m apart centre to centre, the follower
+    // 10 m/s faster: the bumpers (5 m cars) touch after 15 m of closing, 1.5 s, so the boxes
+    // overlap after step index 15 (the 16th step). The ego, at 5 m/s from x = 100, is still on
+    // the ramp (x = 108 < 180): the episode ends with it unmerged.
+    let mut config = smoke();
+    config.scenario.n_leaders = 1;
+    config.scenario.n_followers = 1;
+    config.sim.feasibility = false;
+    let s = scene(vec![
+        car(100.0, 5.0, true),
+        car(120.0, 5.0, false),
+        car(100.0, 15.0, false),
+    ]);
+    let out = &constant_speed(&config, s);
+    let c = out.collision.expect("collision");
+    assert_eq!((c.step, c.a, c.b), (15, 1, 2));
+    let m = EpisodeMetrics::of(out);
+    assert!(m.other_collision && !m.collision && m.failure, "{m:?}");
+}
+
+#[test]
 fn an_ego_that_never_reaches_the_conflict_point_fails() {
     let mut config = smoke();
     config.scenario.n_leaders = 0;

@@ -2,6 +2,8 @@
 //!
 //! - collision: a collision involving the ego;
 //! - failure: no collision, and the ego has not passed the conflict point by the horizon;
+//! - (ours) other collision: the episode ended with a collision between two other players
+//!   (it ends the episode for everyone, so an ego still on the ramp then counts as a failure);
 //! - minimum inter-vehicle distance: the smallest centre-to-centre Euclidean distance between
 //!   the ego and any other player over the episode (before the merge this includes the lateral
 //!   offset of the ramp);
@@ -18,6 +20,8 @@ pub struct EpisodeMetrics {
     pub collision: bool,
     /// The ego did not pass the conflict point (and did not collide).
     pub failure: bool,
+    /// A collision between two other players (not counted as the ego's).
+    pub other_collision: bool,
     /// Minimum ego distance (m).
     pub min_distance: f64,
     /// Average ego speed (m/s).
@@ -32,7 +36,10 @@ impl EpisodeMetrics {
     /// Metrics of an outcome.
     pub fn of(o: &EpisodeOutcome) -> Self {
         let collision = o.collision.is_some_and(|c| c.a == 0 || c.b == 0);
-        Self::from_stats(&o.ego, collision, o.ego_merged_at.is_some())
+        EpisodeMetrics {
+            other_collision: o.collision.is_some() && !collision,
+            ..Self::from_stats(&o.ego, collision, o.ego_merged_at.is_some())
+        }
     }
 
     /// Metrics from the ego's running statistics, whether it collided and whether it merged
@@ -42,6 +49,7 @@ impl EpisodeMetrics {
         EpisodeMetrics {
             collision,
             failure: !collision && !merged,
+            other_collision: false,
             min_distance: ego.min_distance,
             mean_speed: ego.sum_speed / steps,
             mean_abs_accel: ego.sum_abs_accel / steps,
@@ -59,6 +67,8 @@ pub struct Summary {
     pub collisions: usize,
     /// Episodes where the ego failed to merge.
     pub failures: usize,
+    /// Episodes ended by a collision between other players.
+    pub other_collisions: usize,
     /// Mean of the per-episode minimum distance (m).
     pub min_distance: f64,
     /// Mean ego speed (m/s).
@@ -78,6 +88,7 @@ impl Summary {
             episodes: metrics.len(),
             collisions: metrics.iter().filter(|m| m.collision).count(),
             failures: metrics.iter().filter(|m| m.failure).count(),
+            other_collisions: metrics.iter().filter(|m| m.other_collision).count(),
             min_distance: mean(|m| m.min_distance),
             mean_speed: mean(|m| m.mean_speed),
             mean_abs_accel: mean(|m| m.mean_abs_accel),

@@ -128,6 +128,8 @@ pub struct MeanSummary {
     pub collisions: f64,
     /// Mean failures per seed.
     pub failures: f64,
+    /// Mean episodes per seed ended by a collision between other players.
+    pub other_collisions: f64,
     /// Mean minimum distance (m).
     pub min_distance: f64,
     /// Mean ego speed (m/s).
@@ -145,6 +147,7 @@ fn mean_over_seeds(per_seed: &[(u64, Summary)]) -> MeanSummary {
         episodes: per_seed[0].1.episodes,
         collisions: avg(|s| s.collisions as f64),
         failures: avg(|s| s.failures as f64),
+        other_collisions: avg(|s| s.other_collisions as f64),
         min_distance: avg(|s| s.min_distance),
         mean_speed: avg(|s| s.mean_speed),
         mean_abs_accel: avg(|s| s.mean_abs_accel),
@@ -266,6 +269,9 @@ impl Study {
         out += &row("Failure rate", &|m| {
             format!("{}/{}", count(m.failures), m.episodes)
         });
+        out += &row("Collisions between other players (ours)", &|m| {
+            format!("{}/{}", count(m.other_collisions), m.episodes)
+        });
         out += &row("Average minimum inter-vehicle distance (m)", &|m| {
             format!("{:.4}", m.min_distance)
         });
@@ -284,17 +290,18 @@ impl Study {
     /// Every episode as CSV.
     pub fn episodes_csv(&self) -> String {
         let mut out = String::from(
-            "seed,surrounding,scenario,collision,failure,min_distance,mean_speed,mean_abs_accel,mean_abs_jerk\n",
+            "seed,surrounding,scenario,collision,failure,other_collision,min_distance,mean_speed,mean_abs_accel,mean_abs_jerk\n",
         );
         for e in &self.episodes {
             let m = &e.metrics;
             out.push_str(&format!(
-                "{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{}\n",
                 e.seed,
                 e.surrounding.title().to_lowercase().replace(' ', "_"),
                 e.scenario,
                 u8::from(m.collision),
                 u8::from(m.failure),
+                u8::from(m.other_collision),
                 m.min_distance,
                 m.mean_speed,
                 m.mean_abs_accel,

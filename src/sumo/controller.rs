@@ -294,8 +294,9 @@ impl Controller {
         for id in released {
             self.controlled.remove(&id);
             self.commanded.remove(&id);
-            if !gone.contains(&id) {
-                sumo.set_speed(&id, -1.0)?;
+            // A vehicle removed by someone else (another TraCI client) refuses the first call:
+            // there is nothing left to hand back.
+            if !gone.contains(&id) && sumo.set_speed(&id, -1.0).is_ok() {
                 sumo.set_speed_mode(&id, SUMO_SPEED_MODE)?;
                 sumo.set_lane_change_mode(&id, SUMO_LANE_CHANGE_MODE)?;
             }
@@ -350,7 +351,8 @@ impl Controller {
             .map(|(id, lane)| (id.clone(), lane.clone()))
             .collect();
         for (id, lane) in crossing {
-            if sumo.lane_id(&id)?.starts_with(':') {
+            // An error here means the vehicle was removed (by another client, say): skip it.
+            if sumo.lane_id(&id).is_ok_and(|l| l.starts_with(':')) {
                 found.push((id, lane));
             }
         }
@@ -430,6 +432,33 @@ impl Controller {
         if !c.on_ramp || c.x < self.geometry.control_from || !self.is_controllable(sumo, &c.id)? {
             return Ok(false);
         }
+        let players = self.nearest_players(cars, k);
+        if self.geometry.players == PlayerControl::Controllable {
+            for (id, _) in &players {
+                self.is_controllable(sumo, id)?;
+            }
+        }
+        self.players.insert(c.id.clone(), players);
+        self.egos.insert(
+            c.id.clone(),
+            EgoRecord {
+                id: c.id.clone(),
+                start: time,
+                end: None,
+                merged: false,
+                collision: false,
+                lost: false,
+                stats: EgoStats::default(),
+            },
+        );
+        Ok(true)
+    }
+
+    /// The players of ego `k` now: up to `n_leaders` target-lane vehicles ahead (front-most
+    /// first, in the slots that end at `n_leaders`) and up to `n_followers` behind (nearest
+    /// first, from slot `n_leaders + 1`).
+    fn nearest_players(&self, cars: &[Car], k: usize) -> Vec<(String, usize)> {
+        let c = &cars[k];
         let mut target: Vec<&Car> = cars.iter().filter(|o| !o.on_ramp).collect();
         target.sort_by(|a, b| a.x.total_cmp(&b.x));
         let (n_l, n_f) = (self.config.scenario.n_leaders, self.config.scenario.n_followers);
@@ -454,25 +483,7 @@ impl Controller {
                 .enumerate()
                 .map(|(r, o)| (o.id.clone(), n_l + 1 + r)),
         );
-        if self.geometry.players == PlayerControl::Controllable {
-            for (id, _) in &players {
-                self.is_controllable(sumo, id)?;
-            }
-        }
-        self.players.insert(c.id.clone(), players);
-        self.egos.insert(
-            c.id.clone(),
-            EgoRecord {
-                id: c.id.clone(),
-                start: time,
-                end: None,
-                merged: false,
-                collision: false,
-                lost: false,
-                stats: EgoStats::default(),
-            },
-        );
-        Ok(true)
+        players
     }
 
     /// Whether a vehicle's type is controllable (types are asked once per vehicle).
