@@ -2,6 +2,7 @@
 //! message, close on drop.
 
 use crate::sumo::SumoError;
+use crate::sumo::ffi::libsumo as c;
 use crate::sumo::ffi::{self, Api, MpgCollision, MpgVehicleState};
 use std::ffi::{CStr, CString, c_char, c_int};
 use std::marker::PhantomData;
@@ -58,25 +59,6 @@ pub struct Collision {
     pub lane: String,
     /// Position along the lane (m).
     pub pos: f64,
-}
-
-/// Id lists SUMO keeps (values of `MpgIdList` in `shim.h`).
-#[derive(Debug, Clone, Copy)]
-enum IdList {
-    Vehicles = 0,
-    Departed = 2,
-    Arrived = 3,
-    TeleportStarting = 4,
-    Edges = 6,
-    Lanes = 7,
-}
-
-/// Strings SUMO keeps per vehicle (values of `MpgVehicleString` in `shim.h`).
-#[derive(Debug, Clone, Copy)]
-enum VehicleString {
-    Lane = 0,
-    Road = 1,
-    Type = 2,
 }
 
 /// The live simulation. Not `Send` or `Sync`: libsumo is not thread-safe, so the handle stays
@@ -175,7 +157,7 @@ impl Sumo {
         Ok(String::from_utf8_lossy(bytes).into_owned())
     }
 
-    fn id_list(&self, which: IdList) -> Result<Vec<String>, SumoError> {
+    fn id_list(&self, which: c::MpgIdList) -> Result<Vec<String>, SumoError> {
         let mut buf = std::ptr::null();
         let mut len = 0usize;
         // SAFETY: the out-pointers are valid for writes for the duration of the call.
@@ -226,32 +208,37 @@ impl Sumo {
 
     /// Vehicles in the network now.
     pub fn vehicle_ids(&self) -> Result<Vec<String>, SumoError> {
-        self.id_list(IdList::Vehicles)
+        self.id_list(c::MpgIdList_MPG_VEHICLES)
+    }
+
+    /// Vehicles loaded (from route files or added) in the last step.
+    pub fn loaded(&self) -> Result<Vec<String>, SumoError> {
+        self.id_list(c::MpgIdList_MPG_LOADED)
     }
 
     /// Vehicles that departed in the last step.
     pub fn departed(&self) -> Result<Vec<String>, SumoError> {
-        self.id_list(IdList::Departed)
+        self.id_list(c::MpgIdList_MPG_DEPARTED)
     }
 
     /// Vehicles that arrived (left the network) in the last step.
     pub fn arrived(&self) -> Result<Vec<String>, SumoError> {
-        self.id_list(IdList::Arrived)
+        self.id_list(c::MpgIdList_MPG_ARRIVED)
     }
 
     /// Vehicles that started a teleport in the last step.
     pub fn teleporting(&self) -> Result<Vec<String>, SumoError> {
-        self.id_list(IdList::TeleportStarting)
+        self.id_list(c::MpgIdList_MPG_TELEPORT_STARTING)
     }
 
     /// Edge ids of the network (internal edges included).
     pub fn edge_ids(&self) -> Result<Vec<String>, SumoError> {
-        self.id_list(IdList::Edges)
+        self.id_list(c::MpgIdList_MPG_EDGES)
     }
 
     /// Lane ids of the network (internal lanes included).
     pub fn lane_ids(&self) -> Result<Vec<String>, SumoError> {
-        self.id_list(IdList::Lanes)
+        self.id_list(c::MpgIdList_MPG_LANES)
     }
 
     /// Length of a lane (m).
@@ -335,7 +322,7 @@ impl Sumo {
         })
     }
 
-    fn vehicle_string(&self, id: &str, which: VehicleString) -> Result<String, SumoError> {
+    fn vehicle_string(&self, id: &str, which: c::MpgVehicleString) -> Result<String, SumoError> {
         let cid = cstring(id)?;
         let mut buf = std::ptr::null();
         let mut len = 0usize;
@@ -346,17 +333,17 @@ impl Sumo {
 
     /// Lane id of a vehicle.
     pub fn lane_id(&self, id: &str) -> Result<String, SumoError> {
-        self.vehicle_string(id, VehicleString::Lane)
+        self.vehicle_string(id, c::MpgVehicleString_MPG_LANE_ID)
     }
 
     /// Edge id of a vehicle (an internal ":..." id on a junction).
     pub fn road_id(&self, id: &str) -> Result<String, SumoError> {
-        self.vehicle_string(id, VehicleString::Road)
+        self.vehicle_string(id, c::MpgVehicleString_MPG_ROAD_ID)
     }
 
     /// Vehicle type id of a vehicle.
     pub fn type_id(&self, id: &str) -> Result<String, SumoError> {
-        self.vehicle_string(id, VehicleString::Type)
+        self.vehicle_string(id, c::MpgVehicleString_MPG_TYPE_ID)
     }
 
     /// The leader within `dist` metres on the vehicle's route and its gap, if any.

@@ -101,9 +101,6 @@ int MPG_FN(id_list)(int which, const char** buf, size_t* len) {
             case MPG_TELEPORT_STARTING:
                 put_list(api::Simulation::getStartingTeleportIDList(), buf, len);
                 break;
-            case MPG_COLLIDING:
-                put_list(api::Simulation::getCollidingVehiclesIDList(), buf, len);
-                break;
             case MPG_EDGES: put_list(api::Edge::getIDList(), buf, len); break;
             case MPG_LANES: put_list(api::Lane::getIDList(), buf, len); break;
             default: throw std::invalid_argument("unknown id list " + std::to_string(which));

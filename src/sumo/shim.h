@@ -56,9 +56,8 @@ enum MpgIdList {
     MPG_DEPARTED = 2,
     MPG_ARRIVED = 3,
     MPG_TELEPORT_STARTING = 4,
-    MPG_COLLIDING = 5,
-    MPG_EDGES = 6,
-    MPG_LANES = 7,
+    MPG_EDGES = 5,
+    MPG_LANES = 6,
 };
 
 /** Which string `vehicle_string` returns. */
