@@ -137,7 +137,7 @@ pub struct ControllerRun {
     pub collisions: Vec<CollisionEvent>,
     /// Steps where SUMO did not apply the commanded speed.
     pub speed_overrides: u64,
-    /// Mean SSM minimum TTC over finished egos that had one (s).
+    /// Mean SSM minimum TTC over finished egos with an SSM conflict (s).
     pub mean_min_ttc: Option<f64>,
     /// Mean SSM maximum DRAC (m/s^2).
     pub mean_max_drac: Option<f64>,
@@ -434,10 +434,12 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
             r.collisions.iter().filter(|c| c.controlled).count()
         )
     });
-    row("SSM minimum TTC, mean over egos (s)", &|r| opt(r.mean_min_ttc));
-    row("SSM maximum DRAC, mean over egos (m/s^2)", &|r| {
-        opt(r.mean_max_drac)
+    row("Egos with an SSM conflict (TTC < 3 s or DRAC > 3 m/s^2)", &|r| {
+        let with = |e: &&EgoResult| e.finished && (e.ssm_min_ttc.is_some() || e.ssm_max_drac.is_some());
+        format!("{}/{}", r.egos.iter().filter(with).count(), r.summary.episodes)
     });
+    row("SSM minimum TTC, mean over those egos (s)", &|r| opt(r.mean_min_ttc));
+    row("SSM maximum DRAC, mean over those egos (m/s^2)", &|r| opt(r.mean_max_drac));
     row("Ego travel time (s)", &|r| opt(r.mean_travel_time));
     row("Ego time loss (s)", &|r| opt(r.mean_time_loss));
     row("Commanded speeds SUMO did not apply (steps)", &|r| {
