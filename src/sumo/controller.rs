@@ -1,8 +1,11 @@
 //! The co-simulation controller: once per SUMO step it reads the vehicles on the ramp and the
-//! target lane, forms one game per ego (the ego and its 4 leading and 4 following target-lane
-//! vehicles, as in training), builds Table I observations with the training builder, runs the
-//! policy once for every controlled vehicle, applies the feasibility projection and limits of
-//! the internal simulator, and sets `speed = v + a dt` in SUMO.
+//! target lane, keeps one game per ego (the ego and the 4 leading and 4 following target-lane
+//! vehicles nearest to it when it was picked up, in the player slots of training; a player
+//! that leaves the target lane drops out), builds Table I observations with the training
+//! builder, runs the policy once for every controlled vehicle, applies the feasibility
+//! projection and limits of the internal simulator, and sets SUMO's speed (see Integration).
+//! Games are fixed as an internal episode's players are: re-forming them every step made the
+//! trained egos of `i80_merge` stop altogether (measured: 6 failures of 7 finished egos).
 //!
 //! Another Rust program drives it the same way `mpgdrive cosim` does:
 //!

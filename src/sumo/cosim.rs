@@ -438,8 +438,12 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
         let with = |e: &&EgoResult| e.finished && (e.ssm_min_ttc.is_some() || e.ssm_max_drac.is_some());
         format!("{}/{}", r.egos.iter().filter(with).count(), r.summary.episodes)
     });
-    row("SSM minimum TTC, mean over those egos (s)", &|r| opt(r.mean_min_ttc));
-    row("SSM maximum DRAC, mean over those egos (m/s^2)", &|r| opt(r.mean_max_drac));
+    row("SSM minimum TTC, mean over those egos (s)", &|r| {
+        opt(r.mean_min_ttc)
+    });
+    row("SSM maximum DRAC, mean over those egos (m/s^2)", &|r| {
+        opt(r.mean_max_drac)
+    });
     row("Ego travel time (s)", &|r| opt(r.mean_travel_time));
     row("Ego time loss (s)", &|r| opt(r.mean_time_loss));
     row("Commanded speeds SUMO did not apply (steps)", &|r| {
