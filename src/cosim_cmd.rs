@@ -13,6 +13,9 @@ pub struct CosimArgs {
     /// SUMO configuration to run.
     #[arg(long)]
     sumocfg: PathBuf,
+    /// Route files replacing the configuration's (for example from `mpgdrive routes`).
+    #[arg(long)]
+    route_files: Option<PathBuf>,
     /// Merge geometry (default: merge.toml next to the .sumocfg).
     #[arg(long)]
     merge: Option<PathBuf>,
@@ -107,6 +110,7 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let settings = CosimSettings {
         sumocfg: args.sumocfg.clone(),
+        route_files: args.route_files.clone(),
         geometry,
         geometry_path: merge,
         seed: args.seed,

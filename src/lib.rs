@@ -5,6 +5,7 @@
 //! and Multi-Agent Reinforcement Learning for Autonomous Driving") for the equations.
 
 pub mod atomic;
+pub mod batch;
 pub mod config;
 pub mod eval;
 pub mod game;

@@ -40,6 +40,7 @@ struct Common {
     threads: Option<usize>,
 }
 
+mod batch_cmd;
 mod cosim_cmd;
 
 #[derive(Subcommand)]
@@ -47,6 +48,14 @@ enum Command {
     /// Co-simulate with SUMO: a trained policy drives the ramp egos (and, for mpg, their
     /// players) in SUMO traffic; compares the mpg, sarl and sumo controllers.
     Cosim(cosim_cmd::CosimArgs),
+    /// Generate SUMO route files for a network from a demand description (scales, ramp share,
+    /// controllable share, seeds), with a manifest.
+    Routes(batch_cmd::RoutesArgs),
+    /// Run every (route file, controller, seed) as its own cosim worker, N at a time; resumable,
+    /// shardable (--shard K/N).
+    Batch(batch_cmd::BatchArgs),
+    /// Merge batch output directories (shards) into one summary.
+    Merge(batch_cmd::MergeArgs),
     /// Simulate a batch of merge episodes with non-learning drivers and print the ego metrics.
     Demo {
         #[command(flatten)]
@@ -157,7 +166,6 @@ fn usage(message: impl Into<String>) -> anyhow::Error {
 struct UsageMessage(String);
 
 /// Prints to stdout, ending quietly on a closed pipe.
-#[cfg_attr(not(feature = "sumo"), allow(dead_code))]
 fn print(text: &str) -> Result<()> {
     outln!("{text}");
     Ok(())
@@ -226,6 +234,9 @@ fn load(common: &Common) -> Result<(Config, u64, usize)> {
 fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Cosim(args) => cosim_cmd::run(args),
+        Command::Routes(args) => batch_cmd::routes(args),
+        Command::Batch(args) => batch_cmd::batch(args),
+        Command::Merge(args) => batch_cmd::merge_dirs(args),
         Command::Demo {
             common,
             scenarios,

@@ -42,6 +42,8 @@ pub enum Launch {
 pub struct CosimSettings {
     /// The SUMO configuration.
     pub sumocfg: PathBuf,
+    /// Route files replacing the configuration's (SUMO's `--route-files`), if any.
+    pub route_files: Option<PathBuf>,
     /// Merge geometry of the network.
     pub geometry: MergeGeometry,
     /// Where the geometry came from (for messages).
@@ -145,6 +147,8 @@ pub struct ControllerRun {
     pub mean_travel_time: Option<f64>,
     /// Mean time loss of finished egos (s).
     pub mean_time_loss: Option<f64>,
+    /// Time spent in the network by every vehicle, from tripinfo (s; 0 when attached).
+    pub vehicle_seconds: f64,
     /// Wall time in SUMO's step (us per step).
     pub sumo_us_per_step: f64,
     /// Wall time in the controller (us per step).
@@ -168,7 +172,12 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         tripinfo.display().to_string(),
         "--device.ssm.file".into(),
         ssm.display().to_string(),
+        "--tripinfo-output.write-unfinished".into(),
+        "true".into(),
     ];
+    if let Some(routes) = &settings.route_files {
+        args.extend(["--route-files".into(), routes.display().to_string()]);
+    }
     if binary == "sumo-gui" {
         args.extend([
             "--start".into(),
@@ -321,6 +330,7 @@ fn summarise(
         mean_max_drac: mean_of(&|e| e.ssm_max_drac),
         mean_travel_time: mean_of(&|e| e.travel_time),
         mean_time_loss: mean_of(&|e| e.time_loss),
+        vehicle_seconds: trips.values().map(|t| t.0).sum(),
         egos,
         collisions,
         speed_overrides,

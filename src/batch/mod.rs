@@ -1,0 +1,7 @@
+//! Many SUMO scenarios: route files from a demand description (`routes`), the batch runner
+//! with one worker process per run (`runner`), and per-run results with their summary and the
+//! merge of shards (`summary`).
+
+pub mod routes;
+pub mod runner;
+pub mod summary;

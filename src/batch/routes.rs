@@ -1,0 +1,323 @@
+//! `mpgdrive routes`: scenario sets as ordinary SUMO route files.
+//!
+//! A base route file (for example `sumo_nets/i80_merge/i80.rou.xml`) gives the vehicle types,
+//! routes and flows. For every demand scale and seed, each flow becomes explicit vehicles with
+//! Poisson arrivals at `scale x vehsPerHour` (ChaCha8, stream = flow index, so a flow's
+//! vehicles do not depend on the other flows). Ramp flows (whose route starts on the edge of a
+//! ramp lane of `merge.toml`) can be rescaled to carry a given share of the demand, and a flow
+//! whose type is a `vTypeDistribution` that holds a controllable type draws each vehicle's type
+//! with the given controllable share. Types and routes are copied verbatim from the base file.
+//! A `manifest.json` lists the files with their parameters.
+
+use crate::atomic;
+use crate::sumo::geometry::{MergeGeometry, split_lane_id};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// What to generate.
+#[derive(Debug, Clone)]
+pub struct DemandSpec {
+    /// Multipliers of the base demand.
+    pub scales: Vec<f64>,
+    /// Share of all vehicles that come from the ramp (`None`: as in the base file).
+    pub ramp_share: Option<f64>,
+    /// Share of ramp vehicles of a controllable type (`None`: as in the base file).
+    pub controllable_share: Option<f64>,
+    /// One route file per seed and scale.
+    pub seeds: Vec<u64>,
+    /// Departures from 0 to this time (s).
+    pub duration: f64,
+}
+
+/// One generated file, as listed in `manifest.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestEntry {
+    /// File name (in the manifest's directory).
+    pub file: String,
+    /// Demand scale.
+    pub scale: f64,
+    /// Ramp share used (`None`: the base file's).
+    pub ramp_share: Option<f64>,
+    /// Controllable share used (`None`: the base file's).
+    pub controllable_share: Option<f64>,
+    /// Seed of the arrivals and type draws.
+    pub seed: u64,
+    /// Vehicles written.
+    pub vehicles: usize,
+}
+
+/// Errors of route generation.
+#[derive(Debug, thiserror::Error)]
+pub enum RoutesError {
+    /// The base file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The base file is not usable.
+    #[error("{path}: {message}")]
+    Base {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A parameter is out of range.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// A flow of the base file.
+#[derive(Debug, Clone)]
+struct Flow {
+    id: String,
+    vtype: String,
+    route: String,
+    begin: f64,
+    end: f64,
+    per_hour: f64,
+    /// Other attributes (departLane, departSpeed, ...), copied to each vehicle.
+    extra: Vec<(String, String)>,
+    ramp: bool,
+}
+
+/// The parts of a base route file the generator uses.
+struct Base {
+    /// vType, vTypeDistribution and route elements, verbatim.
+    verbatim: Vec<String>,
+    flows: Vec<Flow>,
+    /// vTypeDistribution id -> (controllable member, other member).
+    mixes: Vec<(String, String, String)>,
+}
+
+fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base, RoutesError> {
+    let bad = |message: String| RoutesError::Base {
+        path: path.to_path_buf(),
+        message,
+    };
+    let doc = roxmltree::Document::parse(text).map_err(|e| bad(e.to_string()))?;
+    let ramp_edges: Vec<&str> = geometry
+        .ramp_lanes
+        .iter()
+        .filter_map(|l| split_lane_id(l).map(|(e, _)| e))
+        .collect();
+    let mut verbatim = Vec::new();
+    let mut routes = Vec::new();
+    let mut mixes = Vec::new();
+    let mut flows = Vec::new();
+    for node in doc.root_element().children().filter(|n| n.is_element()) {
+        let attr = |k: &str| node.attribute(k).map(str::to_owned);
+        match node.tag_name().name() {
+            "vType" => verbatim.push(text[node.range()].to_owned()),
+            "vTypeDistribution" => {
+                verbatim.push(text[node.range()].to_owned());
+                let members: Vec<&str> = node
+                    .children()
+                    .filter(|n| n.has_tag_name("vType"))
+                    .filter_map(|n| n.attribute("id"))
+                    .collect();
+                let ctrl = members
+                    .iter()
+                    .find(|m| geometry.controllable_types.iter().any(|c| c == *m));
+                let other = members
+                    .iter()
+                    .find(|m| !geometry.controllable_types.iter().any(|c| c == *m));
+                if let (Some(id), Some(c), Some(o)) = (attr("id"), ctrl, other) {
+                    mixes.push((id, c.to_string(), o.to_string()));
+                }
+            }
+            "route" => {
+                verbatim.push(text[node.range()].to_owned());
+                let id = attr("id").ok_or_else(|| bad("a <route> without id".into()))?;
+                let first = attr("edges").unwrap_or_default();
+                routes.push((id, first.split_whitespace().next().unwrap_or("").to_owned()));
+            }
+            "flow" => {
+                let num = |k: &str| -> Result<f64, RoutesError> {
+                    let v = attr(k).ok_or_else(|| bad(format!("flow without `{k}`")))?;
+                    v.parse()
+                        .map_err(|_| bad(format!("flow attribute {k}=\"{v}\" is not a number")))
+                };
+                let route = attr("route")
+                    .ok_or_else(|| bad("flow without `route` (only route flows are supported)".into()))?;
+                let first_edge = routes
+                    .iter()
+                    .find(|(id, _)| *id == route)
+                    .map(|(_, e)| e.clone())
+                    .ok_or_else(|| bad(format!("flow uses route `{route}`, not defined before it")))?;
+                flows.push(Flow {
+                    id: attr("id").ok_or_else(|| bad("flow without id".into()))?,
+                    vtype: attr("type").unwrap_or_else(|| "DEFAULT_VEHTYPE".into()),
+                    ramp: ramp_edges.contains(&first_edge.as_str()),
+                    route,
+                    begin: num("begin")?,
+                    end: num("end")?,
+                    per_hour: num("vehsPerHour")?,
+                    extra: node
+                        .attributes()
+                        .filter(|a| {
+                            !["id", "type", "route", "begin", "end", "vehsPerHour"].contains(&a.name())
+                        })
+                        .map(|a| (a.name().to_owned(), a.value().to_owned()))
+                        .collect(),
+                });
+            }
+            _ => {}
+        }
+    }
+    if flows.is_empty() {
+        return Err(bad("no <flow> with vehsPerHour to scale".into()));
+    }
+    Ok(Base {
+        verbatim,
+        flows,
+        mixes,
+    })
+}
+
+fn check_share(name: &str, x: Option<f64>) -> Result<(), RoutesError> {
+    match x {
+        Some(v) if !(0.0..=1.0).contains(&v) => {
+            Err(RoutesError::Invalid(format!("{name} {v} must lie in [0, 1]")))
+        }
+        _ => Ok(()),
+    }
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('"', "&quot;")
+        .replace('<', "&lt;")
+}
+
+/// Writes one route file per (scale, seed) and `manifest.json` into `out`.
+pub fn generate(
+    base_path: &Path,
+    geometry: &MergeGeometry,
+    spec: &DemandSpec,
+    out: &Path,
+) -> Result<Vec<ManifestEntry>, RoutesError> {
+    check_share("--ramp-share", spec.ramp_share)?;
+    check_share("--controllable-share", spec.controllable_share)?;
+    if spec.scales.is_empty() || spec.scales.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+        return Err(RoutesError::Invalid(
+            "demand scales must be positive numbers".into(),
+        ));
+    }
+    if !(spec.duration.is_finite() && spec.duration > 0.0) {
+        return Err(RoutesError::Invalid(format!(
+            "--duration {} must be positive",
+            spec.duration
+        )));
+    }
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| RoutesError::Io { path, source }
+    };
+    let text = std::fs::read_to_string(base_path).map_err(io(base_path))?;
+    let base = parse_base(base_path, &text, geometry)?;
+    let total: f64 = base.flows.iter().map(|f| f.per_hour).sum();
+    let ramp: f64 = base.flows.iter().filter(|f| f.ramp).map(|f| f.per_hour).sum();
+    let factor = |f: &Flow| match spec.ramp_share {
+        Some(share) if ramp > 0.0 && ramp < total => {
+            if f.ramp {
+                share * total / ramp
+            } else {
+                (1.0 - share) * total / (total - ramp)
+            }
+        }
+        _ => 1.0,
+    };
+    if spec.ramp_share.is_some() && !(ramp > 0.0 && ramp < total) {
+        return Err(RoutesError::Invalid(
+            "--ramp-share needs both ramp and freeway flows in the base file".into(),
+        ));
+    }
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let stem = base_path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .map_or("routes", |n| n.trim_end_matches(".xml").trim_end_matches(".rou"));
+    let mut manifest = Vec::new();
+    for &scale in &spec.scales {
+        for &seed in &spec.seeds {
+            let mut vehicles: Vec<(f64, String)> = Vec::new();
+            for (k, flow) in base.flows.iter().enumerate() {
+                let rate = flow.per_hour * scale * factor(flow) / 3600.0;
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                rng.set_stream(k as u64);
+                let mix = base.mixes.iter().find(|(id, _, _)| *id == flow.vtype);
+                let mut t = flow.begin;
+                let end = flow.end.min(spec.duration);
+                let mut n = 0usize;
+                while rate > 0.0 {
+                    t += -(1.0 - rng.random::<f64>()).ln() / rate;
+                    if t >= end {
+                        break;
+                    }
+                    let vtype = match (mix, spec.controllable_share) {
+                        (Some((_, ctrl, other)), Some(share)) => {
+                            if rng.random::<f64>() < share {
+                                ctrl.clone()
+                            } else {
+                                other.clone()
+                            }
+                        }
+                        _ => flow.vtype.clone(),
+                    };
+                    let extra: String = flow
+                        .extra
+                        .iter()
+                        .map(|(a, v)| format!(" {a}=\"{}\"", xml_escape(v)))
+                        .collect();
+                    vehicles.push((
+                        t,
+                        format!(
+                            "    <vehicle id=\"{}.{n}\" type=\"{}\" route=\"{}\" depart=\"{t:.2}\"{extra}/>",
+                            xml_escape(&flow.id),
+                            xml_escape(&vtype),
+                            xml_escape(&flow.route)
+                        ),
+                    ));
+                    n += 1;
+                }
+            }
+            vehicles.sort_by(|a, b| a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1)));
+            let file = format!("{stem}_d{scale:.2}_s{seed}.rou.xml");
+            let mut xml = format!(
+                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, seed {seed}, {} s -->\n<routes>\n",
+                base_path.display(),
+                spec.ramp_share,
+                spec.controllable_share,
+                spec.duration
+            );
+            for v in &base.verbatim {
+                xml += &format!("    {v}\n");
+            }
+            for (_, v) in &vehicles {
+                xml += v;
+                xml.push('\n');
+            }
+            xml += "</routes>\n";
+            let path = out.join(&file);
+            atomic::write(&path, xml).map_err(io(&path))?;
+            manifest.push(ManifestEntry {
+                file,
+                scale,
+                ramp_share: spec.ramp_share,
+                controllable_share: spec.controllable_share,
+                seed,
+                vehicles: vehicles.len(),
+            });
+        }
+    }
+    let path = out.join("manifest.json");
+    let json = serde_json::to_string_pretty(&manifest).expect("manifest serialises");
+    atomic::write(&path, json).map_err(io(&path))?;
+    Ok(manifest)
+}
