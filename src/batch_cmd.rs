@@ -224,8 +224,11 @@ pub fn batch(args: BatchArgs) -> Result<ExitCode> {
             .context("progress bar template")?,
     );
     let mut failed_now = 0;
+    let mut vehicle_seconds = 0.0;
+    let started = std::time::Instant::now();
     let end = run_batch(&settings, &todo, &stop, &mut |r| {
         failed_now += usize::from(r.status != "ok");
+        vehicle_seconds += r.metrics.as_ref().map_or(0.0, |m| m.vehicle_seconds);
         bar.set_message(format!("({failed_now} failed)"));
         bar.inc(1);
     })
@@ -240,6 +243,12 @@ pub fn batch(args: BatchArgs) -> Result<ExitCode> {
             Ok(ExitCode::from(130))
         }
         BatchEnd::Done { failed } => {
+            let wall = started.elapsed().as_secs_f64();
+            eprintln!(
+                "batch: {} runs in {wall:.1} s with {jobs} jobs: {:.0} simulated vehicle-seconds per wall second",
+                todo.len(),
+                vehicle_seconds / wall
+            );
             crate::print(
                 &std::fs::read_to_string(args.out.join("summary.md")).context("reading summary.md")?,
             )?;

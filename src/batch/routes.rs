@@ -27,7 +27,7 @@ pub struct DemandSpec {
     pub controllable_share: Option<f64>,
     /// One route file per seed and scale.
     pub seeds: Vec<u64>,
-    /// Departures from 0 to this time (s).
+    /// Departures up to this time (s), within each flow's begin and end.
     pub duration: f64,
 }
 
@@ -249,13 +249,16 @@ pub fn generate(
             let mut vehicles: Vec<(f64, String)> = Vec::new();
             for (k, flow) in base.flows.iter().enumerate() {
                 let rate = flow.per_hour * scale * factor(flow) / 3600.0;
+                if rate <= 0.0 {
+                    continue;
+                }
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 rng.set_stream(k as u64);
                 let mix = base.mixes.iter().find(|(id, _, _)| *id == flow.vtype);
                 let mut t = flow.begin;
                 let end = flow.end.min(spec.duration);
                 let mut n = 0usize;
-                while rate > 0.0 {
+                loop {
                     t += -(1.0 - rng.random::<f64>()).ln() / rate;
                     if t >= end {
                         break;

@@ -108,7 +108,8 @@ fn mean_sd(xs: &[f64]) -> (f64, f64) {
 }
 
 /// The summary files: `summary.csv` and `summary.md`, from `results` (ok runs aggregated per
-/// controller and demand level; failed runs listed).
+/// controller and demand level, mean and sample standard deviation over the runs that have a
+/// value: a run without a finished ego has no rates; failed runs listed).
 pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
     let mut groups: BTreeMap<(String, String), Vec<&RunMetrics>> = BTreeMap::new();
     for r in results {
@@ -119,26 +120,19 @@ pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
                 .push(m);
         }
     }
-    type Field = (&'static str, fn(&RunMetrics) -> f64);
+    // Per-run values; `None` where a run has no finished ego (or no finished trip).
+    type Field = (&'static str, fn(&RunMetrics) -> Option<f64>);
     let fields: [Field; 6] = [
         ("collision_rate", |m| {
-            if m.egos == 0 {
-                0.0
-            } else {
-                m.collisions as f64 / m.egos as f64
-            }
+            (m.egos > 0).then(|| m.collisions as f64 / m.egos as f64)
         }),
         ("failure_rate", |m| {
-            if m.egos == 0 {
-                0.0
-            } else {
-                m.failures as f64 / m.egos as f64
-            }
+            (m.egos > 0).then(|| m.failures as f64 / m.egos as f64)
         }),
-        ("mean_speed", |m| m.mean_speed),
-        ("mean_abs_accel", |m| m.mean_abs_accel),
-        ("mean_abs_jerk", |m| m.mean_abs_jerk),
-        ("mean_time_loss", |m| m.mean_time_loss.unwrap_or(f64::NAN)),
+        ("mean_speed", |m| (m.egos > 0).then_some(m.mean_speed)),
+        ("mean_abs_accel", |m| (m.egos > 0).then_some(m.mean_abs_accel)),
+        ("mean_abs_jerk", |m| (m.egos > 0).then_some(m.mean_abs_jerk)),
+        ("mean_time_loss", |m| m.mean_time_loss),
     ];
     let mut csv = String::from("controller,demand,runs,egos,sumo_collisions");
     for (name, _) in &fields {
@@ -159,10 +153,15 @@ pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
             ms.len()
         );
         for (_, f) in &fields {
-            let xs: Vec<f64> = ms.iter().map(|m| f(m)).collect();
-            let (mean, sd) = mean_sd(&xs);
-            csv += &format!(",{mean:.6},{sd:.6}");
-            md += &format!(" {mean:.4} ± {sd:.4} |");
+            let xs: Vec<f64> = ms.iter().filter_map(|m| f(m)).collect();
+            if xs.is_empty() {
+                csv += ",,";
+                md += " - |";
+            } else {
+                let (mean, sd) = mean_sd(&xs);
+                csv += &format!(",{mean:.6},{sd:.6}");
+                md += &format!(" {mean:.4} ± {sd:.4} |");
+            }
         }
         csv.push('\n');
         md.push('\n');

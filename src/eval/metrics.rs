@@ -83,7 +83,8 @@ impl Summary {
     /// Summary of episode metrics.
     pub fn of(metrics: &[EpisodeMetrics]) -> Self {
         let n = metrics.len().max(1) as f64;
-        let mean = |f: fn(&EpisodeMetrics) -> f64| metrics.iter().map(f).sum::<f64>() / n;
+        // 0.0 + ...: an empty sum of f64 is -0.0, which would print as "-0.0000".
+        let mean = |f: fn(&EpisodeMetrics) -> f64| (0.0 + metrics.iter().map(f).sum::<f64>()) / n;
         Summary {
             episodes: metrics.len(),
             collisions: metrics.iter().filter(|m| m.collision).count(),

@@ -1,0 +1,169 @@
+//! `mpgdrive routes`, `batch` and `merge` end to end on the paper's single-lane merge: a small
+//! batch and its summary, a killed batch resumed to the same summary, two shards merged to the
+//! same summary, and a malformed route file recorded as a failed run.
+#![cfg(feature = "sumo")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+const CFG: &str = "sumo_nets/single_lane_merge/merge.sumocfg";
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_mpgdrive"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+fn fresh(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-batch-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Two route files (demand 0.5 and 1.0 of the base, 60 s of departures).
+fn route_files(name: &str) -> PathBuf {
+    let dir = fresh(name);
+    let out = bin()
+        .args([
+            "routes",
+            "--base",
+            "sumo_nets/single_lane_merge/merge.rou.xml",
+            "--scales",
+            "0.5,1.0",
+        ])
+        .args(["--duration", "60", "--controllable-share", "1.0", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    dir
+}
+
+fn batch(routes: &Path, out: &Path, extra: &[&str]) -> Command {
+    batch_of(routes, out, "sumo,sarl", extra)
+}
+
+fn batch_of(routes: &Path, out: &Path, controllers: &str, extra: &[&str]) -> Command {
+    let mut c = bin();
+    c.args([
+        "batch",
+        "--sumocfg",
+        CFG,
+        "--controllers",
+        controllers,
+        "--end",
+        "90",
+        "--routes",
+    ])
+    .arg(format!("{}/*.rou.xml", routes.display()))
+    .arg("--out")
+    .arg(out)
+    .args(extra);
+    c
+}
+
+fn run(mut c: Command) -> Output {
+    let out = c.output().unwrap();
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
+    out
+}
+
+fn summary(dir: &Path) -> String {
+    std::fs::read_to_string(dir.join("summary.csv")).unwrap()
+}
+
+#[test]
+fn a_small_batch_runs_every_combination_and_summarises_them() {
+    let routes = route_files("small-routes");
+    let out = fresh("small");
+    let o = run(batch(&routes, &out, &["--jobs", "2"]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let runs: Vec<_> = std::fs::read_dir(out.join("runs")).unwrap().collect();
+    assert_eq!(runs.len(), 4, "2 route files x 2 controllers x 1 seed");
+    let csv = summary(&out);
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    let keys: Vec<String> = rows
+        .iter()
+        .map(|r| r.split(',').take(3).collect::<Vec<_>>().join(","))
+        .collect();
+    assert_eq!(keys, ["sarl,0.50,1", "sarl,1.00,1", "sumo,0.50,1", "sumo,1.00,1"]);
+    // The summary's egos equal those of the run files.
+    let result: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("runs/merge_d1.00_s0__sumo__s0.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(result["status"], "ok");
+    let egos = result["metrics"]["egos"].as_u64().unwrap();
+    assert!(egos > 0);
+    assert!(
+        rows[3].starts_with(&format!("sumo,1.00,1,{egos},")),
+        "{}",
+        rows[3]
+    );
+    assert!(out.join("logs/merge_d1.00_s0__sumo__s0.log").is_file());
+}
+
+#[test]
+fn a_killed_batch_resumes_to_the_summary_of_an_uninterrupted_one() {
+    let routes = route_files("resume-routes");
+    let whole = fresh("whole");
+    assert!(run(batch(&routes, &whole, &["--jobs", "1"])).status.success());
+    let cut = fresh("cut");
+    let mut child = batch(&routes, &cut, &["--jobs", "1"]).spawn().unwrap();
+    let started = Instant::now();
+    while std::fs::read_dir(cut.join("runs")).map_or(0, |d| d.count()) < 1 {
+        assert!(started.elapsed() < Duration::from_secs(60), "no run finished");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    child.kill().unwrap(); // SIGKILL: no chance to tidy up
+    child.wait().unwrap();
+    let finished = std::fs::read_dir(cut.join("runs")).unwrap().count();
+    assert!(finished < 4, "killed before the end ({finished} runs)");
+    assert!(!cut.join("summary.csv").exists());
+    let o = run(batch(&routes, &cut, &["--jobs", "1", "--resume"]));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(summary(&cut), summary(&whole));
+}
+
+#[test]
+fn two_shards_merge_to_the_summary_of_one_run() {
+    let routes = route_files("shard-routes");
+    let whole = fresh("shard-whole");
+    assert!(run(batch(&routes, &whole, &["--jobs", "2"])).status.success());
+    let (a, b) = (fresh("shard-a"), fresh("shard-b"));
+    assert!(run(batch(&routes, &a, &["--shard", "1/2"])).status.success());
+    assert!(run(batch(&routes, &b, &["--shard", "2/2"])).status.success());
+    let runs = |d: &Path| std::fs::read_dir(d.join("runs")).unwrap().count();
+    assert_eq!((runs(&a), runs(&b)), (2, 2));
+    let merged = fresh("shard-merged");
+    let o = run({
+        let mut c = bin();
+        c.arg("merge").arg(&a).arg(&b).arg("--out").arg(&merged);
+        c
+    });
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(summary(&merged), summary(&whole));
+}
+
+#[test]
+fn a_malformed_route_file_is_a_failed_run_and_the_others_complete() {
+    let routes = route_files("bad-routes");
+    std::fs::write(
+        routes.join("broken.rou.xml"),
+        "<routes>\n  <vehicle id=\"x\" depart=\"0\" route=\"nowhere\"/>\n",
+    )
+    .unwrap();
+    let out = fresh("bad");
+    let o = run(batch_of(&routes, &out, "sumo", &["--jobs", "2"]));
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    let broken: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("runs/broken__sumo__s0.json")).unwrap())
+            .unwrap();
+    assert_eq!(broken["status"], "failed");
+    let error = broken["error"].as_str().unwrap();
+    assert!(error.contains("SUMO error"), "{error}");
+    let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
+    assert!(md.contains("3 runs: 2 ok, 1 failed."), "{md}");
+}

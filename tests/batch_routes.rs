@@ -1,0 +1,97 @@
+//! `mpgdrive routes` as a library: Poisson demand from the I-80 base file, shares and seeds.
+
+use mpgdrive::batch::routes::{DemandSpec, generate};
+use mpgdrive::sumo::MergeGeometry;
+use std::path::{Path, PathBuf};
+
+fn out_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-routes-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn i80() -> (PathBuf, MergeGeometry) {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("sumo_nets/i80_merge");
+    (
+        dir.join("i80.rou.xml"),
+        MergeGeometry::load(&dir.join("merge.toml")).unwrap(),
+    )
+}
+
+/// (depart, type, route) of every vehicle of a generated file.
+fn vehicles(path: &Path) -> Vec<(f64, String, String)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    doc.descendants()
+        .filter(|n| n.has_tag_name("vehicle"))
+        .map(|n| {
+            (
+                n.attribute("depart").unwrap().parse().unwrap(),
+                n.attribute("type").unwrap().to_owned(),
+                n.attribute("route").unwrap().to_owned(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn demand_scales_shares_and_seeds() {
+    let (base, geometry) = i80();
+    let out = out_dir("i80");
+    let spec = DemandSpec {
+        scales: vec![1.0, 2.0],
+        ramp_share: Some(0.2),
+        controllable_share: Some(0.5),
+        seeds: vec![0, 1],
+        duration: 3600.0,
+    };
+    let manifest = generate(&base, &geometry, &spec, &out).unwrap();
+    assert_eq!(manifest.len(), 4);
+    for entry in &manifest {
+        let v = vehicles(&out.join(&entry.file));
+        assert_eq!(v.len(), entry.vehicles);
+        // Poisson counts: the base flows run 900 s, so the mean is 8,200 veh/h x scale / 4
+        // (the duration, 3,600 s, does not extend them); 4 standard deviations.
+        let mean = 8200.0 * entry.scale / 4.0;
+        assert!(
+            (v.len() as f64 - mean).abs() < 4.0 * mean.sqrt(),
+            "{} vehicles, mean {mean}",
+            v.len()
+        );
+        assert!(v.windows(2).all(|w| w[0].0 <= w[1].0), "departures sorted");
+        let ramp: Vec<_> = v.iter().filter(|x| x.2 == "onramp").collect();
+        // Binomial shares: 20% from the ramp, half of those controllable.
+        let share = ramp.len() as f64 / v.len() as f64;
+        assert!(
+            (share - 0.2).abs() < 4.0 * (0.2 * 0.8 / v.len() as f64).sqrt(),
+            "ramp share {share}"
+        );
+        let ctrl = ramp.iter().filter(|x| x.1 == "ctrl").count() as f64 / ramp.len() as f64;
+        assert!(
+            (ctrl - 0.5).abs() < 4.0 * (0.25 / ramp.len() as f64).sqrt(),
+            "controllable {ctrl}"
+        );
+        assert!(ramp.iter().all(|x| x.1 == "ctrl" || x.1 == "human_ramp"));
+        assert!(v.iter().filter(|x| x.2 == "freeway").all(|x| x.1 == "human"));
+    }
+    // The same seed gives the same file; another seed another one.
+    let again = out_dir("i80-again");
+    generate(&base, &geometry, &spec, &again).unwrap();
+    let read = |d: &Path, f: &str| std::fs::read_to_string(d.join(f)).unwrap();
+    assert_eq!(read(&out, &manifest[0].file), read(&again, &manifest[0].file));
+    assert_ne!(read(&out, &manifest[0].file), read(&out, &manifest[1].file));
+}
+
+#[test]
+fn out_of_range_shares_are_refused() {
+    let (base, geometry) = i80();
+    let spec = DemandSpec {
+        scales: vec![1.0],
+        ramp_share: Some(1.5),
+        controllable_share: None,
+        seeds: vec![0],
+        duration: 60.0,
+    };
+    let err = generate(&base, &geometry, &spec, &out_dir("bad")).unwrap_err();
+    assert!(err.to_string().contains("--ramp-share 1.5"), "{err}");
+}
