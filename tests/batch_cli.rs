@@ -167,3 +167,24 @@ fn a_malformed_route_file_is_a_failed_run_and_the_others_complete() {
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(md.contains("3 runs: 2 ok, 1 failed."), "{md}");
 }
+
+#[test]
+fn a_run_over_its_timeout_is_killed_and_recorded() {
+    let routes = route_files("timeout-routes");
+    let out = fresh("timeout");
+    // A 90 s run takes well over 10 ms of wall time (SUMO alone starts in about 80 ms).
+    let o = run(batch_of(
+        &routes,
+        &out,
+        "sumo",
+        &["--jobs", "2", "--timeout", "0.01"],
+    ));
+    assert_eq!(o.status.code(), Some(1));
+    for key in ["merge_d0.50_s0__sumo__s0", "merge_d1.00_s0__sumo__s0"] {
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join(format!("runs/{key}.json"))).unwrap())
+                .unwrap();
+        assert_eq!(r["status"], "failed");
+        assert!(r["error"].as_str().unwrap().starts_with("timed out"), "{r}");
+    }
+}
