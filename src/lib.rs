@@ -9,6 +9,7 @@ pub mod batch;
 pub mod config;
 pub mod eval;
 pub mod game;
+pub mod ngsim;
 pub mod num;
 pub mod policy;
 pub mod sim;
