@@ -9,17 +9,12 @@ use std::time::{Duration, Instant};
 
 const CFG: &str = "sumo_nets/single_lane_merge/merge.sumocfg";
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_mpgdrive"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
+mod common;
+
+use common::bin;
 
 fn fresh(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-batch-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::fresh_dir(&format!("batch-{name}"))
 }
 
 /// Two route files (demand 0.5 and 1.0 of the base, 60 s of departures).

@@ -30,3 +30,18 @@ pub fn car(x: f64, v: f64, ramp: bool) -> Vehicle {
 pub fn scene(vehicles: Vec<Vehicle>) -> Scene {
     Scene { vehicles }
 }
+
+/// The mpgdrive binary, run from the crate root.
+pub fn bin() -> std::process::Command {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"));
+    c.current_dir(env!("CARGO_MANIFEST_DIR"));
+    c
+}
+
+/// A fresh, empty temporary directory for this test process.
+pub fn fresh_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}

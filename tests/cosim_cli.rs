@@ -7,16 +7,12 @@ use std::process::{Command, Output, Stdio};
 
 const CFG: &str = "sumo_nets/single_lane_merge/merge.sumocfg";
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_mpgdrive"));
-    c.current_dir(env!("CARGO_MANIFEST_DIR"));
-    c
-}
+mod common;
+
+use common::bin;
 
 fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-cosim-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::fresh_dir(&format!("cosim-{name}"))
 }
 
 /// Exit code 2, one line on stderr containing every needle, no panic.
