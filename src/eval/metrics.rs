@@ -33,6 +33,17 @@ pub struct EpisodeMetrics {
 }
 
 impl EpisodeMetrics {
+    /// CSV header of the four continuous metrics, in [`Self::motion_csv`]'s order.
+    pub const CSV_MOTION: &str = "min_distance,mean_speed,mean_abs_accel,mean_abs_jerk";
+
+    /// The four continuous metrics as CSV fields (see [`Self::CSV_MOTION`]).
+    pub fn motion_csv(&self) -> String {
+        format!(
+            "{},{},{},{}",
+            self.min_distance, self.mean_speed, self.mean_abs_accel, self.mean_abs_jerk
+        )
+    }
+
     /// Metrics of an outcome.
     pub fn of(o: &EpisodeOutcome) -> Self {
         let collision = o.collision.is_some_and(|c| c.a == 0 || c.b == 0);

@@ -289,23 +289,21 @@ impl Study {
 
     /// Every episode as CSV.
     pub fn episodes_csv(&self) -> String {
-        let mut out = String::from(
-            "seed,surrounding,scenario,collision,failure,other_collision,min_distance,mean_speed,mean_abs_accel,mean_abs_jerk\n",
+        let mut out = format!(
+            "seed,surrounding,scenario,collision,failure,other_collision,{}\n",
+            EpisodeMetrics::CSV_MOTION
         );
         for e in &self.episodes {
             let m = &e.metrics;
             out.push_str(&format!(
-                "{},{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{}\n",
                 e.seed,
                 e.surrounding.title().to_lowercase().replace(' ', "_"),
                 e.scenario,
                 u8::from(m.collision),
                 u8::from(m.failure),
                 u8::from(m.other_collision),
-                m.min_distance,
-                m.mean_speed,
-                m.mean_abs_accel,
-                m.mean_abs_jerk
+                m.motion_csv()
             ));
         }
         out

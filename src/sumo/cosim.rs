@@ -189,6 +189,11 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
     args
 }
 
+/// Whether a run goes on: before `end` (to half a step) and with vehicles still expected.
+fn more_to_run(sumo: &Sumo, end: f64, dt: f64) -> Result<bool, SumoError> {
+    Ok(sumo.time()? < end - 0.5 * dt && sumo.min_expected()? > 0)
+}
+
 /// Runs one controller over the whole simulation.
 pub fn run_controller(
     config: &Config,
@@ -230,7 +235,7 @@ pub fn run_controller(
     );
     let mut sumo_us = 0.0;
     let mut steps = 0u64;
-    while sumo.time()? < settings.end - 0.5 * dt && sumo.min_expected()? > 0 {
+    while more_to_run(&sumo, settings.end, dt)? {
         let t0 = Instant::now();
         sumo.step()?;
         sumo_us += t0.elapsed().as_secs_f64() * 1e6;
@@ -272,7 +277,7 @@ pub fn plain_sumo_us_per_step(settings: &CosimSettings) -> Result<f64, CosimErro
     let dt = sumo.delta_t()?;
     let started = Instant::now();
     let mut steps = 0u64;
-    while sumo.time()? < settings.end - 0.5 * dt && sumo.min_expected()? > 0 {
+    while more_to_run(&sumo, settings.end, dt)? {
         sumo.step()?;
         steps += 1;
     }
@@ -464,15 +469,16 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
 
 /// Per-ego CSV over all runs.
 pub fn egos_csv(runs: &[ControllerRun]) -> String {
-    let mut s = String::from(
-        "controller,seed,id,start,end,finished,collision,failure,min_distance,mean_speed,mean_abs_accel,mean_abs_jerk,ssm_min_ttc,ssm_max_drac,travel_time,time_loss\n",
+    let mut s = format!(
+        "controller,seed,id,start,end,finished,collision,failure,{},ssm_min_ttc,ssm_max_drac,travel_time,time_loss\n",
+        EpisodeMetrics::CSV_MOTION
     );
     let o = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
     for r in runs {
         for e in &r.egos {
             let m = &e.metrics;
             s += &format!(
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
                 r.controller.name(),
                 r.seed,
                 e.id,
@@ -481,10 +487,7 @@ pub fn egos_csv(runs: &[ControllerRun]) -> String {
                 u8::from(e.finished),
                 u8::from(m.collision),
                 u8::from(m.failure),
-                m.min_distance,
-                m.mean_speed,
-                m.mean_abs_accel,
-                m.mean_abs_jerk,
+                m.motion_csv(),
                 o(e.ssm_min_ttc),
                 o(e.ssm_max_drac),
                 o(e.travel_time),
