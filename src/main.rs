@@ -42,6 +42,7 @@ struct Common {
 
 mod batch_cmd;
 mod cosim_cmd;
+mod ngsim_cmd;
 
 #[derive(Subcommand)]
 enum Command {
@@ -56,6 +57,9 @@ enum Command {
     Batch(batch_cmd::BatchArgs),
     /// Merge batch output directories (shards) into one summary.
     Merge(batch_cmd::MergeArgs),
+    /// NGSIM I-80: prepare (smooth, recompute, reassign lanes), eval (Table IV replay against
+    /// the human drivers), synth (synthetic files in the official layouts).
+    Ngsim(ngsim_cmd::NgsimArgs),
     /// Simulate a batch of merge episodes with non-learning drivers and print the ego metrics.
     Demo {
         #[command(flatten)]
@@ -207,6 +211,8 @@ fn main() -> ExitCode {
             let bad_input = sumo_error(&e)
                 || e.downcast_ref::<ConfigError>().is_some()
                 || e.downcast_ref::<UsageMessage>().is_some()
+                || e.downcast_ref::<mpgdrive::ngsim::load::NgsimError>().is_some()
+                || e.downcast_ref::<mpgdrive::ngsim::smooth::SmoothError>().is_some()
                 || matches!(
                     e.downcast_ref::<EvalError>(),
                     Some(EvalError::Policy(_) | EvalError::NoPolicy(_) | EvalError::NeedNePolicy { .. })
@@ -237,6 +243,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Routes(args) => batch_cmd::routes(args),
         Command::Batch(args) => batch_cmd::batch(args),
         Command::Merge(args) => batch_cmd::merge_dirs(args),
+        Command::Ngsim(args) => ngsim_cmd::run(args),
         Command::Demo {
             common,
             scenarios,

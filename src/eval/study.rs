@@ -140,7 +140,8 @@ pub struct MeanSummary {
     pub mean_abs_jerk: f64,
 }
 
-fn mean_over_seeds(per_seed: &[(u64, Summary)]) -> MeanSummary {
+/// Averages per-seed summaries (counts become fractional means).
+pub fn mean_over_seeds(per_seed: &[(u64, Summary)]) -> MeanSummary {
     let k = per_seed.len() as f64;
     let avg = |f: fn(&Summary) -> f64| per_seed.iter().map(|(_, s)| f(s)).sum::<f64>() / k;
     MeanSummary {
@@ -247,44 +248,16 @@ impl Study {
         } else {
             "Selected players' policies"
         };
-        let mut out = format!(
-            "Statistical results: {title} (policy seeds {:?})\n\n| {head} |",
-            self.seeds
-        );
-        for c in &self.columns {
-            out.push_str(&format!(" {} |", c.surrounding.title()));
-        }
-        out.push_str(&format!("\n|---|{}\n", "---|".repeat(self.columns.len())));
-        let row = |name: &str, f: &dyn Fn(&MeanSummary) -> String| {
-            let cells: String = self
-                .columns
-                .iter()
-                .map(|c| format!(" {} |", f(&c.mean)))
-                .collect();
-            format!("| {name} |{cells}\n")
-        };
-        out += &row("Collision rate", &|m| {
-            format!("{}/{}", count(m.collisions), m.episodes)
-        });
-        out += &row("Failure rate", &|m| {
-            format!("{}/{}", count(m.failures), m.episodes)
-        });
-        out += &row("Collisions between other players (ours)", &|m| {
-            format!("{}/{}", count(m.other_collisions), m.episodes)
-        });
-        out += &row("Average minimum inter-vehicle distance (m)", &|m| {
-            format!("{:.4}", m.min_distance)
-        });
-        out += &row("Average ego vehicle speed (m/s)", &|m| {
-            format!("{:.4}", m.mean_speed)
-        });
-        out += &row("Average acceleration magnitude (m/s^2)", &|m| {
-            format!("{:.4}", m.mean_abs_accel)
-        });
-        out += &row("Average jerk magnitude (m/s^3)", &|m| {
-            format!("{:.4}", m.mean_abs_jerk)
-        });
-        out
+        let columns: Vec<(&str, MeanSummary)> = self
+            .columns
+            .iter()
+            .map(|c| (c.surrounding.title(), c.mean))
+            .collect();
+        format!(
+            "Statistical results: {title} (policy seeds {:?})\n\n{}",
+            self.seeds,
+            table(head, &columns, true)
+        )
     }
 
     /// Every episode as CSV.
@@ -308,4 +281,43 @@ impl Study {
         }
         out
     }
+}
+
+/// A Markdown table laid out like the paper's Tables II-IV: one column per `(title, results)`,
+/// one row per metric, `head` in the top-left cell. `others` adds our row of collisions between
+/// two players other than the ego.
+pub fn table(head: &str, columns: &[(&str, MeanSummary)], others: bool) -> String {
+    let mut out = format!("| {head} |");
+    for (title, _) in columns {
+        out.push_str(&format!(" {title} |"));
+    }
+    out.push_str(&format!("\n|---|{}\n", "---|".repeat(columns.len())));
+    let row = |name: &str, f: &dyn Fn(&MeanSummary) -> String| {
+        let cells: String = columns.iter().map(|(_, m)| format!(" {} |", f(m))).collect();
+        format!("| {name} |{cells}\n")
+    };
+    out += &row("Collision rate", &|m| {
+        format!("{}/{}", count(m.collisions), m.episodes)
+    });
+    out += &row("Failure rate", &|m| {
+        format!("{}/{}", count(m.failures), m.episodes)
+    });
+    if others {
+        out += &row("Collisions between other players (ours)", &|m| {
+            format!("{}/{}", count(m.other_collisions), m.episodes)
+        });
+    }
+    out += &row("Average minimum inter-vehicle distance (m)", &|m| {
+        format!("{:.4}", m.min_distance)
+    });
+    out += &row("Average ego vehicle speed (m/s)", &|m| {
+        format!("{:.4}", m.mean_speed)
+    });
+    out += &row("Average acceleration magnitude (m/s^2)", &|m| {
+        format!("{:.4}", m.mean_abs_accel)
+    });
+    out += &row("Average jerk magnitude (m/s^3)", &|m| {
+        format!("{:.4}", m.mean_abs_jerk)
+    });
+    out
 }

@@ -47,3 +47,41 @@ pub fn find_neighbors(scene: &Scene, order: &mut Vec<usize>, out: &mut Vec<Neigh
         };
     }
 }
+
+/// The players of an ego at longitudinal position `ego_x` among target-lane vehicles
+/// `(key, x)`: up to `n_leaders` ahead (front-most first, in the slots that end at
+/// `n_leaders`, so the nearest leader is always player `n_leaders`) and up to `n_followers` at
+/// or behind it (nearest first, from slot `n_leaders + 1`). Slots are the agent indices of
+/// training; the ego is slot 0. Used by the SUMO controller and the NGSIM replay.
+pub fn player_slots<K: Clone>(
+    ego_x: f64,
+    target_lane: &[(K, f64)],
+    n_leaders: usize,
+    n_followers: usize,
+) -> Vec<(K, usize)> {
+    let mut sorted: Vec<&(K, f64)> = target_lane.iter().collect();
+    sorted.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let ahead: Vec<&(K, f64)> = sorted
+        .iter()
+        .copied()
+        .filter(|o| o.1 > ego_x)
+        .take(n_leaders)
+        .collect();
+    let first_slot = n_leaders - ahead.len() + 1;
+    let mut players: Vec<(K, usize)> = ahead
+        .iter()
+        .rev()
+        .enumerate()
+        .map(|(r, o)| (o.0.clone(), first_slot + r))
+        .collect();
+    players.extend(
+        sorted
+            .iter()
+            .rev()
+            .filter(|o| o.1 <= ego_x)
+            .take(n_followers)
+            .enumerate()
+            .map(|(r, o)| (o.0.clone(), n_leaders + 1 + r)),
+    );
+    players
+}

@@ -51,7 +51,7 @@
 use crate::config::Config;
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::{BatchPolicy, obs_dim, observe_as};
-use crate::sim::neighbors::{Neighbors, find_neighbors};
+use crate::sim::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::sim::rollout::{EgoStats, applied_action};
 use crate::sim::state::{Scene, Vehicle};
 use crate::sumo::geometry::{MergeGeometry, PlayerControl};
@@ -461,32 +461,13 @@ impl Controller {
     /// first, in the slots that end at `n_leaders`) and up to `n_followers` behind (nearest
     /// first, from slot `n_leaders + 1`).
     fn nearest_players(&self, cars: &[Car], k: usize) -> Vec<(String, usize)> {
-        let c = &cars[k];
-        let mut target: Vec<&Car> = cars.iter().filter(|o| !o.on_ramp).collect();
-        target.sort_by(|a, b| a.x.total_cmp(&b.x));
-        let (n_l, n_f) = (self.config.scenario.n_leaders, self.config.scenario.n_followers);
-        let ahead: Vec<&Car> = target.iter().copied().filter(|o| o.x > c.x).take(n_l).collect();
-        let behind: Vec<&Car> = target
+        let target: Vec<(String, f64)> = cars
             .iter()
-            .rev()
-            .copied()
-            .filter(|o| o.x <= c.x)
-            .take(n_f)
+            .filter(|o| !o.on_ramp)
+            .map(|o| (o.id.clone(), o.x))
             .collect();
-        let first_slot = n_l - ahead.len() + 1;
-        let mut players: Vec<(String, usize)> = ahead
-            .iter()
-            .rev()
-            .enumerate()
-            .map(|(r, o)| (o.id.clone(), first_slot + r))
-            .collect();
-        players.extend(
-            behind
-                .iter()
-                .enumerate()
-                .map(|(r, o)| (o.id.clone(), n_l + 1 + r)),
-        );
-        players
+        let s = &self.config.scenario;
+        player_slots(cars[k].x, &target, s.n_leaders, s.n_followers)
     }
 
     /// Whether a vehicle's type is controllable (types are asked once per vehicle).

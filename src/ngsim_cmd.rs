@@ -1,0 +1,243 @@
+//! `mpgdrive ngsim prepare|eval|synth`: the commands over [`mpgdrive::ngsim`].
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use mpgdrive::atomic;
+use mpgdrive::config::Config;
+use mpgdrive::eval::study::load_policies;
+use mpgdrive::ngsim::config::NgsimConfig;
+use mpgdrive::ngsim::load::load;
+use mpgdrive::ngsim::process::{Prepared, prepare};
+use mpgdrive::ngsim::replay::study;
+use mpgdrive::ngsim::scenario::extract;
+use mpgdrive::ngsim::synth::{Layout, generate};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+/// Arguments of `mpgdrive ngsim`.
+#[derive(Args)]
+pub struct NgsimArgs {
+    #[command(subcommand)]
+    command: NgsimCommand,
+}
+
+#[derive(Args)]
+struct Input {
+    /// An NGSIM trajectory file: FHWA text (trajectories-0400-0415.txt) or the
+    /// data.transportation.gov CSV.
+    #[arg(long)]
+    input: PathBuf,
+    /// NGSIM settings: location, smoothing, lanes, merge scenarios.
+    #[arg(long, default_value = "configs/ngsim.toml")]
+    ngsim: PathBuf,
+}
+
+#[derive(Subcommand)]
+enum NgsimCommand {
+    /// Load, smooth, recompute speed and acceleration, reassign lanes; write
+    /// trajectories.csv and summary.json.
+    Prepare {
+        #[command(flatten)]
+        input: Input,
+        /// Output directory.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Extract the merge scenarios and replay them with the human, single-agent and MARL egos
+    /// (Table IV): table4.md, table4.json, episodes.csv, scenarios.csv.
+    Eval {
+        #[command(flatten)]
+        input: Input,
+        /// Paper configuration (vehicle limits, dt, horizon, feasibility rules).
+        #[arg(long, default_value = "configs/paper.toml")]
+        config: PathBuf,
+        /// MARL policy: a file or a directory of one per seed.
+        #[arg(long, default_value = "policies/mpg")]
+        policy: PathBuf,
+        /// Single-agent policy: a file or a directory of one per seed.
+        #[arg(long, default_value = "policies/sarl")]
+        sarl_policy: PathBuf,
+        /// Output directory.
+        #[arg(long, default_value = "results/ngsim")]
+        out: PathBuf,
+        /// Print JSON instead of Markdown.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a synthetic NGSIM file (internal-simulator merges with measurement noise) in an
+    /// official layout, for trying the pipeline and for benchmarks.
+    Synth {
+        /// Paper configuration.
+        #[arg(long, default_value = "configs/paper.toml")]
+        config: PathBuf,
+        /// NGSIM settings (lanes, conflict point).
+        #[arg(long, default_value = "configs/ngsim.toml")]
+        ngsim: PathBuf,
+        /// Merge episodes (each 30 s: the ego, 8 players, 5 background vehicles).
+        #[arg(long, default_value_t = 20)]
+        episodes: usize,
+        /// Seed of the initial states and the noise.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Standard deviation of the position noise (m).
+        #[arg(long, default_value_t = 0.3)]
+        noise: f64,
+        /// text (FHWA) or csv (data.transportation.gov).
+        #[arg(long, value_enum, default_value_t = LayoutArg::Text)]
+        layout: LayoutArg,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum LayoutArg {
+    Text,
+    Csv,
+}
+
+fn load_prepared(input: &Input) -> Result<(NgsimConfig, Prepared)> {
+    let ngsim = NgsimConfig::load(&input.ngsim)?;
+    let data = load(&input.input, &ngsim.location)?;
+    let prepared = prepare(&data, &ngsim)?;
+    Ok((ngsim, prepared))
+}
+
+fn write(dir: &Path, name: &str, text: impl AsRef<[u8]>) -> Result<()> {
+    let path = dir.join(name);
+    atomic::write(&path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Runs `mpgdrive ngsim ...`.
+pub fn run(args: NgsimArgs) -> Result<ExitCode> {
+    match args.command {
+        NgsimCommand::Prepare { input, out } => {
+            let t0 = Instant::now();
+            let (_, prepared) = load_prepared(&input)?;
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            write(&out, "trajectories.csv", prepared.csv())?;
+            let summary = serde_json::to_string_pretty(&prepared.summary)?;
+            write(&out, "summary.json", &summary)?;
+            println!("{summary}");
+            eprintln!(
+                "prepared {} in {:.1} s: {}",
+                input.input.display(),
+                t0.elapsed().as_secs_f64(),
+                out.display()
+            );
+        }
+        NgsimCommand::Eval {
+            input,
+            config,
+            policy,
+            sarl_policy,
+            out,
+            json,
+        } => {
+            let config = Config::load(&config)?;
+            // One observation per step: one libtorch thread avoids pool overhead.
+            tch::set_num_threads(1);
+            let mut mpg = load_policies(&policy, config.n_agents())?;
+            let mut sarl = load_policies(&sarl_policy, config.n_agents())?;
+            let (ngsim, prepared) = load_prepared(&input)?;
+            let s = &config.scenario;
+            let extraction = extract(&prepared, &ngsim, s.n_leaders, s.n_followers);
+            let result = study(
+                &config,
+                &ngsim,
+                &prepared,
+                &extraction.scenarios,
+                &mut sarl,
+                &mut mpg,
+            );
+            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            let counts = format!(
+                "{} scenarios replayed of {} available ({} merging vehicles seen past the start or already merged, {} whose record ends before it; {} vehicles, {} rows, {} skipped)",
+                extraction.scenarios.len(),
+                extraction.available,
+                extraction.late,
+                extraction.short,
+                prepared.summary.vehicles,
+                prepared.summary.rows,
+                prepared.summary.rows_skipped
+            );
+            let markdown = format!(
+                "Comparative results on the naturalistic dataset ({})\n\n{}\n{counts}\n",
+                input.input.display(),
+                result.markdown()
+            );
+            let report = serde_json::json!({
+                "input": input.input,
+                "policy_seeds": {
+                    "mpg": mpg.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
+                    "sarl": sarl.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
+                },
+                "ngsim": ngsim,
+                "prepare": prepared.summary,
+                "extraction": extraction,
+                "columns": result.columns,
+            });
+            let report = serde_json::to_string_pretty(&report)?;
+            let mut scenarios = String::from("scenario,ego_id,start_frame,players\n");
+            for (i, sc) in extraction.scenarios.iter().enumerate() {
+                let players: Vec<String> = sc
+                    .players
+                    .iter()
+                    .map(|&(j, slot)| format!("{slot}:{}", prepared.tracks[j].id))
+                    .collect();
+                scenarios.push_str(&format!(
+                    "{i},{},{},{}\n",
+                    prepared.tracks[sc.ego].id,
+                    sc.start_frame,
+                    players.join(" ")
+                ));
+            }
+            write(&out, "table4.md", &markdown)?;
+            write(&out, "table4.json", &report)?;
+            write(&out, "episodes.csv", result.episodes_csv())?;
+            write(&out, "scenarios.csv", scenarios)?;
+            if json {
+                println!("{report}");
+            } else {
+                println!("{markdown}");
+            }
+            eprintln!("results in {}", out.display());
+        }
+        NgsimCommand::Synth {
+            config,
+            ngsim,
+            episodes,
+            seed,
+            noise,
+            layout,
+            out,
+        } => {
+            let config = Config::load(&config)?;
+            let ngsim = NgsimConfig::load(&ngsim)?;
+            if !(noise.is_finite() && noise >= 0.0) {
+                return Err(crate::usage(format!(
+                    "--noise {noise}: must be a non-negative number of metres"
+                )));
+            }
+            if episodes == 0 {
+                return Err(crate::usage("--episodes must be at least 1"));
+            }
+            let layout = match layout {
+                LayoutArg::Text => Layout::Text,
+                LayoutArg::Csv => Layout::Csv,
+            };
+            let synthetic = generate(&config, &ngsim, episodes, seed, noise, layout);
+            atomic::write(&out, &synthetic.text).with_context(|| format!("writing {}", out.display()))?;
+            eprintln!(
+                "{}: {} merge episodes, {} vehicles, {} bytes (seed {seed}, noise {noise} m)",
+                out.display(),
+                synthetic.episodes.len(),
+                synthetic.truth.len(),
+                synthetic.text.len()
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
