@@ -163,10 +163,19 @@ pub fn run(args: NgsimArgs) -> Result<ExitCode> {
                 prepared.summary.rows,
                 prepared.summary.rows_skipped
             );
-            let markdown = format!(
-                "Comparative results on the naturalistic dataset ({})\n\n{}\n{counts}\n",
-                input.input.display(),
+            let table = if extraction.scenarios.is_empty() {
+                format!(
+                    "No merge scenario: no vehicle enters on the on-ramp (lane {}) and ends in lane {} ({} ramp vehicles).\n",
+                    ngsim.lanes.ramp_lane(),
+                    ngsim.lanes.target_lane(),
+                    prepared.summary.ramp_vehicles
+                )
+            } else {
                 result.markdown()
+            };
+            let markdown = format!(
+                "Comparative results on the naturalistic dataset ({})\n\n{table}\n{counts}\n",
+                input.input.display()
             );
             let report = serde_json::json!({
                 "input": input.input,

@@ -210,6 +210,16 @@ fn the_real_sample_prepares_cleanly_and_has_no_merge_scenarios() {
         s.lane_changed_rows
     );
     assert!(extract(&prepared, &ngsim, 4, 4).scenarios.is_empty());
+    let out = fresh_dir("real-eval");
+    let o = bin()
+        .args(["ngsim", "eval", "--input"])
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && text.contains("No merge scenario"), "{text}");
 }
 
 #[test]
