@@ -12,6 +12,8 @@ pub mod game;
 pub mod ngsim;
 pub mod num;
 pub mod policy;
+pub mod render;
+pub mod scenario;
 pub mod sim;
 pub mod sumo;
 pub mod train;

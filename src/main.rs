@@ -43,6 +43,7 @@ struct Common {
 mod batch_cmd;
 mod cosim_cmd;
 mod ngsim_cmd;
+mod report_cmd;
 
 #[derive(Subcommand)]
 enum Command {
@@ -60,6 +61,9 @@ enum Command {
     /// NGSIM I-80: prepare (smooth, recompute, reassign lanes), eval (Table IV replay against
     /// the human drivers), synth (synthetic files in the official layouts).
     Ngsim(ngsim_cmd::NgsimArgs),
+    /// Run one of the paper's specific scenarios with the shared policy and draw it: key
+    /// moments (PNG), the episode (GIF), the ego's speed, acceleration and gap.
+    Scenario(report_cmd::ScenarioArgs),
     /// Simulate a batch of merge episodes with non-learning drivers and print the ego metrics.
     Demo {
         #[command(flatten)]
@@ -176,7 +180,6 @@ fn print(text: &str) -> Result<()> {
 }
 
 /// One policy from a file or a directory of seeds: `seed`, or else the lowest seed.
-#[cfg_attr(not(feature = "sumo"), allow(dead_code))]
 fn pick_policy(path: &Path, seed: Option<u64>, n_agents: usize) -> Result<mpgdrive::policy::PolicyNet> {
     let mut policies = load_policies(path, n_agents)?;
     policies.sort_by_key(|(_, side)| side.seed);
@@ -244,6 +247,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Batch(args) => batch_cmd::batch(args),
         Command::Merge(args) => batch_cmd::merge_dirs(args),
         Command::Ngsim(args) => ngsim_cmd::run(args),
+        Command::Scenario(args) => report_cmd::run_scenario(args),
         Command::Demo {
             common,
             scenarios,

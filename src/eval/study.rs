@@ -10,7 +10,7 @@ use crate::eval::metrics::{EpisodeMetrics, Summary};
 use crate::policy::drive::{Others, policy_rollout};
 use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::network::PolicyNet;
-use crate::sim::rollout::Driver;
+use crate::sim::rollout::{Driver, Recording};
 use crate::sim::sampler::{Purpose, purpose_seed, sample_scenes};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -201,7 +201,7 @@ pub fn evaluate(
                 Surrounding::Idm => Others::Driver(Driver::Idm),
                 Surrounding::Const => Others::Driver(Driver::ConstSpeed),
             };
-            let metrics: Vec<_> = policy_rollout(config, net, others, &scenes, threads)?
+            let metrics: Vec<_> = policy_rollout(config, net, others, &scenes, threads, Recording::Summary)?
                 .iter()
                 .map(EpisodeMetrics::of)
                 .collect();

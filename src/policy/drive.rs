@@ -3,7 +3,7 @@
 use crate::config::Config;
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::PolicyActor;
-use crate::sim::rollout::{Driver, EpisodeOutcome, RolloutOptions, rollout};
+use crate::sim::rollout::{Driver, EpisodeOutcome, Recording, RolloutOptions, rollout};
 use crate::sim::state::Scene;
 use std::sync::Mutex;
 
@@ -22,14 +22,15 @@ fn copies(net: &PolicyNet, n: usize) -> Result<Vec<PolicyNet>, tch::TchError> {
     (0..n).map(|_| net.try_clone()).collect()
 }
 
-/// Rolls `scenes` out with the network driving the ego and `others` the other players. Each
-/// worker thread gets its own copies of the networks.
+/// Rolls `scenes` out with the network driving the ego and `others` the other players,
+/// keeping what `recording` says. Each worker thread gets its own copies of the networks.
 pub fn policy_rollout(
     config: &Config,
     net: &PolicyNet,
     others: Others,
     scenes: &[Scene],
     threads: usize,
+    recording: Recording,
 ) -> Result<Vec<EpisodeOutcome>, tch::TchError> {
     let threads = threads.clamp(1, scenes.len().max(1));
     let second: Vec<Option<PolicyNet>> = match others {
@@ -44,6 +45,7 @@ pub fn policy_rollout(
     };
     let opts = RolloutOptions {
         threads,
+        recording,
         ..RolloutOptions::from_config(config)
     };
     Ok(rollout(config, &opts, scenes, || {

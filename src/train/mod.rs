@@ -20,7 +20,7 @@ use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::{OBS_LAYOUT_VERSION, obs_dim, observe, tensor_observations};
 use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::{Driver, EpisodeOutcome};
+use crate::sim::rollout::{Driver, EpisodeOutcome, Recording};
 use crate::sim::sampler::{Purpose, purpose_seed, sample_scenes};
 use crate::sim::state::Scene;
 use crate::sim::tensor::{self, idm_actions};
@@ -300,7 +300,7 @@ pub fn train(
             });
         }
 
-        let outcomes = policy_rollout(config, &net, probe_others(run.mode), &probe, t.threads)?;
+        let outcomes = policy_rollout(config, &net, probe_others(run.mode), &probe, t.threads, Recording::Summary)?;
         let m = outcomes.len() as f64;
         let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
         let actions = probe_actions(config, &net, &probe);
