@@ -315,6 +315,7 @@ pub fn train(
             probe_collision_rate: metrics.iter().filter(|x| x.collision).count() as f64 / m,
             probe_failure_rate: metrics.iter().filter(|x| x.failure).count() as f64 / m,
             wall_seconds: elapsed_before + start.elapsed().as_secs_f64(),
+            probe_ego_return: Some(outcomes.iter().map(|o| o.returns[0]).sum::<f64>() / m),
         };
         previous = actions;
         on_epoch(&record);
