@@ -198,7 +198,11 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
 fn write_outputs(out: &std::path::Path, runs: &[mpgdrive::sumo::cosim::ControllerRun]) -> Result<()> {
     use mpgdrive::atomic;
     use mpgdrive::sumo::cosim;
-    atomic::write(&out.join("cosim.md"), cosim::markdown(runs))?;
+    let command: Vec<String> = std::env::args().collect();
+    atomic::write(
+        &out.join("cosim.md"),
+        format!("Command: `{}`\n\n{}", command.join(" "), cosim::markdown(runs)),
+    )?;
     atomic::write(&out.join("cosim.json"), serde_json::to_string_pretty(runs)?)?;
     atomic::write(&out.join("egos.csv"), cosim::egos_csv(runs))?;
     Ok(())

@@ -13,6 +13,7 @@ pub mod ngsim;
 pub mod num;
 pub mod policy;
 pub mod render;
+pub mod report;
 pub mod scenario;
 pub mod sim;
 pub mod sumo;

@@ -64,6 +64,9 @@ enum Command {
     /// Run one of the paper's specific scenarios with the shared policy and draw it: key
     /// moments (PNG), the episode (GIF), the ego's speed, acceleration and gap.
     Scenario(report_cmd::ScenarioArgs),
+    /// Write a self-contained report folder (report.md, report.html): Tables II and III, the
+    /// specific scenarios, training curves, and co-sim and NGSIM results when present.
+    Report(report_cmd::ReportArgs),
     /// Simulate a batch of merge episodes with non-learning drivers and print the ego metrics.
     Demo {
         #[command(flatten)]
@@ -248,6 +251,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Merge(args) => batch_cmd::merge_dirs(args),
         Command::Ngsim(args) => ngsim_cmd::run(args),
         Command::Scenario(args) => report_cmd::run_scenario(args),
+        Command::Report(args) => report_cmd::run_report(args),
         Command::Demo {
             common,
             scenarios,

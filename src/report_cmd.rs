@@ -1,14 +1,20 @@
-//! `mpgdrive scenario` (the paper's specific scenarios, drawn) and `mpgdrive report`.
+//! `mpgdrive scenario` (the paper's specific scenarios, drawn) and `mpgdrive report` (one
+//! folder with the tables, the figures and the commands that made them).
 
 use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
 use mpgdrive::eval::EpisodeMetrics;
+use mpgdrive::eval::study::{Study, Surrounding, evaluate, load_policies};
 use mpgdrive::policy::drive::{Others, policy_rollout};
+use mpgdrive::render::charts::{Panel, Series, mean_band, panels_png};
 use mpgdrive::render::episode::render_episode;
+use mpgdrive::report::{Block, Document};
 use mpgdrive::scenario::Preset;
 use mpgdrive::sim::rollout::Recording;
+use mpgdrive::train::curves::{self, EpochRecord};
+use mpgdrive::train::curves_path;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -34,7 +40,13 @@ pub struct ScenarioArgs {
 }
 
 /// Runs a preset and draws it; returns the files written and a one-line outcome.
-pub fn scenario(config: &Config, preset: Preset, policy: &Path, seed: Option<u64>, out: &Path) -> Result<(Vec<PathBuf>, String)> {
+pub fn scenario(
+    config: &Config,
+    preset: Preset,
+    policy: &Path,
+    seed: Option<u64>,
+    out: &Path,
+) -> Result<(Vec<PathBuf>, String)> {
     let net = crate::pick_policy(policy, seed, config.n_agents())?;
     let scene = preset.scene(config);
     let outcome = policy_rollout(config, &net, Others::SameNetwork, &[scene], 1, Recording::Full)?
@@ -49,12 +61,16 @@ pub fn scenario(config: &Config, preset: Preset, policy: &Path, seed: Option<u64
     let summary = format!(
         "{title}: {}; ego merged at {}, collision {}, mean speed {:.2} m/s, mean |u| {:.3} m/s^2",
         preset.description(),
-        outcome
-            .ego_merged_at
-            .map_or("never".to_string(), |m| format!("t = {:.1} s", (m + 1) as f64 * dt)),
-        outcome
-            .collision
-            .map_or("none".to_string(), |c| format!("players {} and {} at t = {:.1} s", c.a, c.b, (c.step + 1) as f64 * dt)),
+        outcome.ego_merged_at.map_or("never".to_string(), |m| format!(
+            "t = {:.1} s",
+            (m + 1) as f64 * dt
+        )),
+        outcome.collision.map_or("none".to_string(), |c| format!(
+            "players {} and {} at t = {:.1} s",
+            c.a,
+            c.b,
+            (c.step + 1) as f64 * dt
+        )),
         metrics.mean_speed,
         metrics.mean_abs_accel
     );
@@ -70,7 +86,8 @@ pub fn scenario(config: &Config, preset: Preset, policy: &Path, seed: Option<u64
         "metrics": metrics,
         "summary": summary,
     });
-    atomic::write(&json, serde_json::to_string_pretty(&record)?).with_context(|| format!("writing {}", json.display()))?;
+    atomic::write(&json, serde_json::to_string_pretty(&record)?)
+        .with_context(|| format!("writing {}", json.display()))?;
     files.push(json);
     Ok((files, summary))
 }
@@ -78,11 +95,338 @@ pub fn scenario(config: &Config, preset: Preset, policy: &Path, seed: Option<u64
 /// Runs `mpgdrive scenario`.
 pub fn run_scenario(args: ScenarioArgs) -> Result<ExitCode> {
     let config = Config::load(&args.config)?;
-    let preset = if args.preset == 1 { Preset::One } else { Preset::Two };
+    let preset = if args.preset == 1 {
+        Preset::One
+    } else {
+        Preset::Two
+    };
     let (files, summary) = scenario(&config, preset, &args.policy, args.policy_seed, &args.out)?;
     println!("{summary}");
     for f in files {
         println!("  {}", f.display());
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Arguments of `mpgdrive report`.
+#[derive(Args)]
+pub struct ReportArgs {
+    /// Configuration file (TOML).
+    #[arg(long, default_value = "configs/paper.toml")]
+    config: PathBuf,
+    /// MARL policies: a directory of one per seed (with their training curves).
+    #[arg(long, default_value = "policies/mpg")]
+    policy: PathBuf,
+    /// Single-agent policies: a directory of one per seed.
+    #[arg(long, default_value = "policies/sarl")]
+    sarl_policy: PathBuf,
+    /// Seed of the MARL policy that drives the specific scenarios (default: the lowest).
+    #[arg(long)]
+    policy_seed: Option<u64>,
+    /// A `mpgdrive cosim` output directory to include (skipped when it has no cosim.md).
+    #[arg(long, default_value = "results/cosim")]
+    cosim: PathBuf,
+    /// A `mpgdrive ngsim eval` output directory to include (skipped when it has no table4.md).
+    #[arg(long, default_value = "results/ngsim")]
+    ngsim: PathBuf,
+    /// Worker threads for the evaluation (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Output folder: report.md, report.html, figures/, tables.
+    #[arg(long, default_value = "results/report")]
+    out: PathBuf,
+}
+
+/// A saved results file whose Markdown is included: table lines as tables, the rest as text.
+fn include_markdown(doc: &mut Document, text: &str) {
+    let mut table = String::new();
+    for line in text.lines().chain(std::iter::once("")) {
+        if line.trim_start().starts_with('|') {
+            table.push_str(line);
+            table.push('\n');
+            continue;
+        }
+        if !table.is_empty() {
+            doc.push(Block::Table(std::mem::take(&mut table)));
+        }
+        if !line.trim().is_empty() {
+            doc.push(Block::Text(line.trim().to_string()));
+        }
+    }
+}
+
+fn curves_of(dir: &Path, seeds: &[u64]) -> Result<Vec<Vec<EpochRecord>>> {
+    seeds
+        .iter()
+        .map(|s| {
+            let path = curves_path(&dir.join(format!("seed{s}")));
+            curves::read(&path).with_context(|| format!("reading {}", path.display()))
+        })
+        .collect()
+}
+
+fn panel(title: &str, x: &str, y: &str) -> Panel {
+    Panel {
+        title: title.into(),
+        x_label: x.into(),
+        y_label: y.into(),
+    }
+}
+
+fn curve(records: &[Vec<EpochRecord>], f: fn(&EpochRecord) -> Option<f64>) -> Vec<Vec<(f64, f64)>> {
+    records
+        .iter()
+        .map(|r| {
+            r.iter()
+                .filter_map(|e| f(e).map(|y| (e.epoch as f64, y)))
+                .collect()
+        })
+        .collect()
+}
+
+/// The sorted ego returns of a study's episodes under `surrounding`, as `(quantile, return)`.
+fn quantiles(study: &Study, surrounding: Surrounding) -> Vec<(f64, f64)> {
+    let mut r: Vec<f64> = study
+        .episodes
+        .iter()
+        .filter(|e| e.surrounding == surrounding)
+        .map(|e| e.ego_return)
+        .collect();
+    r.sort_by(f64::total_cmp);
+    let n = r.len().max(1) as f64;
+    r.into_iter()
+        .enumerate()
+        .map(|(k, v)| ((k as f64 + 0.5) / n, v))
+        .collect()
+}
+
+/// Runs `mpgdrive report`.
+pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
+    let t0 = std::time::Instant::now();
+    let config = Config::load(&args.config)?;
+    let threads = match args.threads {
+        Some(0) => return Err(crate::usage("--threads must be at least 1")),
+        Some(t) => t,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let mpg = load_policies(&args.policy, config.n_agents())?;
+    let sarl = load_policies(&args.sarl_policy, config.n_agents())?;
+    let figures = args.out.join("figures");
+    std::fs::create_dir_all(&figures).with_context(|| format!("creating {}", figures.display()))?;
+    let command: Vec<String> = std::env::args().collect();
+    let exe = "./target/release/mpgdrive";
+    let cfg = args.config.display().to_string();
+    let mut doc = Document::default();
+    let title = "mpgdrive report";
+    doc.push(Block::Heading(1, title.into()));
+    doc.push(Block::Text(format!(
+        "mpgdrive {}; configuration `{cfg}`; MARL policies `{}` (seeds {:?}), single-agent policies `{}` (seeds {:?}). Made by `{}`.",
+        mpgdrive::VERSION,
+        args.policy.display(),
+        mpg.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
+        args.sarl_policy.display(),
+        sarl.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
+        command.join(" ")
+    )));
+
+    // Statistical study.
+    let all = [Surrounding::Ne, Surrounding::Idm, Surrounding::Const];
+    let marl = evaluate(&config, &mpg, &[], &all, threads)?;
+    let single = evaluate(&config, &sarl, &mpg, &all, threads)?;
+    doc.push(Block::Heading(2, "Statistical study (Tables II and III)".into()));
+    doc.push(Block::Text(format!(
+        "{} test scenarios per policy seed, drawn from each seed's test stream (disjoint from training); counts averaged over seeds.",
+        config.eval.test_scenarios
+    )));
+    for study in [&marl, &single] {
+        include_markdown(&mut doc, &study.markdown());
+    }
+    doc.push(Block::Code(format!(
+        "{exe} eval --config {cfg} --policy {}\n{exe} eval --config {cfg} --policy {} --ne-policy {}",
+        args.policy.display(),
+        args.sarl_policy.display(),
+        args.policy.display()
+    )));
+    atomic::write(&args.out.join("table2.md"), marl.markdown())?;
+    atomic::write(&args.out.join("table3.md"), single.markdown())?;
+
+    // Specific scenarios.
+    doc.push(Block::Heading(2, "Specific scenarios".into()));
+    for preset in [Preset::One, Preset::Two] {
+        let (files, summary) = scenario(&config, preset, &args.policy, args.policy_seed, &figures)?;
+        doc.push(Block::Heading(3, format!("Scenario {}", preset.number())));
+        doc.push(Block::Text(summary));
+        let captions = [
+            "initial state",
+            "1 s before the ego passes x_c (halfway when it does not)",
+            "2 s after the ego passed x_c (the last step when it did not)",
+            "the whole episode (every 5th step, twice real time)",
+            "ego speed, applied acceleration and bumper gap to its nearest leader (negative: side by side)",
+        ];
+        for (file, caption) in files.iter().zip(captions) {
+            doc.push(Block::Image(
+                file.clone(),
+                format!("Scenario {}: {caption}", preset.number()),
+            ));
+        }
+        doc.push(Block::Code(format!(
+            "{exe} scenario --config {cfg} --preset {} --policy {}{}",
+            preset.number(),
+            args.policy.display(),
+            args.policy_seed
+                .map_or(String::new(), |s| format!(" --policy-seed {s}"))
+        )));
+    }
+
+    // Training curves.
+    doc.push(Block::Heading(2, "Training".into()));
+    let seeds = |p: &[(mpgdrive::policy::PolicyNet, mpgdrive::policy::file::Sidecar)]| -> Vec<u64> {
+        p.iter().map(|(_, s)| s.seed).collect()
+    };
+    let mpg_curves = curves_of(&args.policy, &seeds(&mpg))?;
+    let sarl_curves = curves_of(&args.sarl_policy, &seeds(&sarl))?;
+    let fig7 = figures.join("training_potential.png");
+    let fig8 = figures.join("training_action_msd.png");
+    panels_png(
+        &fig7,
+        (1000, 450),
+        &[(
+            panel(
+                "Mean total potential on the probe set (Figure 7)",
+                "epoch",
+                "discounted potential",
+            ),
+            vec![mean_band(
+                "MARL, mean and 1 std over seeds",
+                &curve(&mpg_curves, |e| Some(e.probe_objective)),
+            )],
+        )],
+    )?;
+    panels_png(
+        &fig8,
+        (1000, 450),
+        &[(
+            panel(
+                "Mean squared action difference between successive epochs (Figure 8)",
+                "epoch",
+                "log10 (m^2/s^4)",
+            ),
+            vec![mean_band(
+                "MARL, mean and 1 std over seeds",
+                &curve(&mpg_curves, |e| {
+                    (e.action_msd > 0.0).then(|| e.action_msd.log10())
+                }),
+            )],
+        )],
+    )?;
+    doc.push(Block::Image(
+        fig7,
+        "Figure 7 analogue: mean total potential per epoch".into(),
+    ));
+    doc.push(Block::Image(
+        fig8,
+        "Figure 8 analogue: policy change per epoch".into(),
+    ));
+    let ego_train = curve(&mpg_curves, |e| e.probe_ego_return);
+    if ego_train.iter().all(|c| !c.is_empty()) {
+        let fig = figures.join("training_ego_return.png");
+        panels_png(
+            &fig,
+            (1000, 450),
+            &[(
+                panel(
+                    "Ego total reward on the probe set during training",
+                    "epoch",
+                    "ego discounted return",
+                ),
+                vec![
+                    mean_band("MARL (players on the shared policy)", &ego_train),
+                    mean_band(
+                        "single-agent RL (players on IDM)",
+                        &curve(&sarl_curves, |e| e.probe_ego_return),
+                    ),
+                ],
+            )],
+        )?;
+        doc.push(Block::Image(
+            fig,
+            "Ego total reward during training, MARL against single-agent RL".into(),
+        ));
+    } else {
+        doc.push(Block::Text(
+            "The training curves of these policies do not record the ego's return (older curves): retrain to get the training comparison.".into(),
+        ));
+    }
+    let fig = figures.join("testing_ego_return.png");
+    panels_png(
+        &fig,
+        (1000, 450),
+        &[(
+            panel(
+                "Ego total reward in testing (all seeds' test scenarios, sorted)",
+                "fraction of test scenarios",
+                "ego discounted return",
+            ),
+            vec![
+                line("MARL, NE players", quantiles(&marl, Surrounding::Ne)),
+                line("MARL, IDM players", quantiles(&marl, Surrounding::Idm)),
+                line("single-agent RL, NE players", quantiles(&single, Surrounding::Ne)),
+                line(
+                    "single-agent RL, IDM players",
+                    quantiles(&single, Surrounding::Idm),
+                ),
+            ],
+        )],
+    )?;
+    doc.push(Block::Image(
+        fig,
+        "Ego total reward during testing, MARL against single-agent RL".into(),
+    ));
+    doc.push(Block::Code(format!(
+        "{exe} train --config {cfg} --mode mpg --seeds 0,1,2,3,4 --out policies/mpg\n{exe} train --config {cfg} --mode sarl --seeds 0,1,2,3,4 --out policies/sarl"
+    )));
+
+    // Co-simulation and NGSIM, when present.
+    for (dir, file, heading, missing) in [
+        (
+            &args.cosim,
+            "cosim.md",
+            "SUMO co-simulation",
+            "no co-simulation results: run `mpgdrive cosim` (see the README) and pass its --out here with --cosim",
+        ),
+        (
+            &args.ngsim,
+            "table4.md",
+            "NGSIM I-80 replay (Table IV)",
+            "no NGSIM results: run `mpgdrive ngsim eval` on the official I-80 files (see the README) and pass its --out here with --ngsim",
+        ),
+    ] {
+        doc.push(Block::Heading(2, heading.into()));
+        match std::fs::read_to_string(dir.join(file)) {
+            Ok(text) => {
+                doc.push(Block::Text(format!("From `{}`.", dir.join(file).display())));
+                include_markdown(&mut doc, &text);
+            }
+            Err(_) => {
+                doc.push(Block::Text(format!("Not included: {missing}.")));
+            }
+        }
+    }
+    let (md, html) = doc.write(&args.out, title)?;
+    println!("{}", marl.markdown());
+    println!(
+        "report: {} ({}), {:.0} s",
+        html.display(),
+        md.display(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn line(label: &str, points: Vec<(f64, f64)>) -> Series {
+    Series {
+        label: label.into(),
+        points,
+        band: Vec::new(),
+    }
 }

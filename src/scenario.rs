@@ -34,9 +34,9 @@ impl Preset {
     pub fn description(self) -> &'static str {
         match self {
             Preset::One => {
-                "Scenario 1: leaders 1-4 slower than v_d, followers 5-8 faster than the ego; the gap between 4 and 5 should widen"
+                "leaders 1-4 slower than v_d, followers 5-8 faster than the ego; the gap between 4 and 5 should widen"
             }
-            Preset::Two => "Scenario 2: a 40 m gap between 4 and 5, but 5 is 6 m/s faster than the ego: wait, then merge",
+            Preset::Two => "a 40 m gap between 4 and 5, but 5 is 6 m/s faster than the ego: wait, then merge",
         }
     }
 
@@ -70,7 +70,9 @@ impl Preset {
         }];
         // "1" (front-most) .. "n_l" (nearest).
         vehicles.extend((0..n_l).map(|k| target(ego_x + ahead + (n_l - 1 - k) as f64 * headway, v_lead)));
-        vehicles.extend((0..config.scenario.n_followers).map(|k| target(ego_x - behind - k as f64 * headway, v_follow)));
+        vehicles.extend(
+            (0..config.scenario.n_followers).map(|k| target(ego_x - behind - k as f64 * headway, v_follow)),
+        );
         Scene { vehicles }
     }
 }

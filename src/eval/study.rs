@@ -106,6 +106,8 @@ pub struct EpisodeRow {
     pub scenario: usize,
     /// Its metrics.
     pub metrics: EpisodeMetrics,
+    /// The ego's discounted return `J_0` (its total reward).
+    pub ego_return: f64,
 }
 
 /// Results for one kind of surrounding players.
@@ -201,16 +203,21 @@ pub fn evaluate(
                 Surrounding::Idm => Others::Driver(Driver::Idm),
                 Surrounding::Const => Others::Driver(Driver::ConstSpeed),
             };
-            let metrics: Vec<_> = policy_rollout(config, net, others, &scenes, threads, Recording::Summary)?
-                .iter()
-                .map(EpisodeMetrics::of)
-                .collect();
-            episodes.extend(metrics.iter().enumerate().map(|(scenario, &metrics)| EpisodeRow {
-                seed: side.seed,
-                surrounding,
-                scenario,
-                metrics,
-            }));
+            let outcomes = policy_rollout(config, net, others, &scenes, threads, Recording::Summary)?;
+            let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
+            episodes.extend(
+                outcomes
+                    .iter()
+                    .zip(&metrics)
+                    .enumerate()
+                    .map(|(scenario, (o, &metrics))| EpisodeRow {
+                        seed: side.seed,
+                        surrounding,
+                        scenario,
+                        metrics,
+                        ego_return: o.returns[0],
+                    }),
+            );
             per_seed.push((side.seed, Summary::of(&metrics)));
         }
         columns.push(Column {
@@ -263,20 +270,21 @@ impl Study {
     /// Every episode as CSV.
     pub fn episodes_csv(&self) -> String {
         let mut out = format!(
-            "seed,surrounding,scenario,collision,failure,other_collision,{}\n",
+            "seed,surrounding,scenario,collision,failure,other_collision,{},ego_return\n",
             EpisodeMetrics::CSV_MOTION
         );
         for e in &self.episodes {
             let m = &e.metrics;
             out.push_str(&format!(
-                "{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{}\n",
                 e.seed,
                 e.surrounding.title().to_lowercase().replace(' ', "_"),
                 e.scenario,
                 u8::from(m.collision),
                 u8::from(m.failure),
                 u8::from(m.other_collision),
-                m.motion_csv()
+                m.motion_csv(),
+                e.ego_return
             ));
         }
         out

@@ -132,7 +132,10 @@ fn draw_panel<DB: DrawingBackend>(
 /// Draws panels stacked vertically into one PNG (written to a temporary name, then renamed).
 pub fn panels_png(path: &Path, size: (u32, u32), panels: &[(Panel, Vec<Series>)]) -> Result<(), RenderError> {
     if panels.iter().all(|(_, s)| bounds(s).is_none()) {
-        return Err(RenderError::Empty(format!("{}: no finite data to plot", path.display())));
+        return Err(RenderError::Empty(format!(
+            "{}: no finite data to plot",
+            path.display()
+        )));
     }
     register_font();
     let tmp = atomic::temporary(path);

@@ -63,7 +63,9 @@ pub fn render_episode(
 ) -> Result<Vec<PathBuf>, RenderError> {
     let scenes = scenes_of(outcome);
     if scenes.is_empty() {
-        return Err(RenderError::Empty(format!("{name}: the episode was not recorded")));
+        return Err(RenderError::Empty(format!(
+            "{name}: the episode was not recorded"
+        )));
     }
     let dt = config.sim.dt;
     let steps = scenes.len() - 1;
@@ -71,24 +73,52 @@ pub fn render_episode(
     let moments = key_steps(steps, outcome.ego_merged_at, dt);
     let key_scenes: Vec<Scene> = moments.iter().map(|&k| scenes[k].clone()).collect();
     let layout = layout_for(config, &key_scenes, true);
-    for (step, what) in moments.into_iter().zip(["initial", "before", "after"]) {
+    let labels = if outcome.ego_merged_at.is_some() {
+        ["initial state", "ego before merging", "ego after merging"]
+    } else {
+        [
+            "initial state",
+            "halfway (the ego does not merge)",
+            "last step (the ego did not merge)",
+        ]
+    };
+    for ((step, what), label) in moments
+        .into_iter()
+        .zip(["initial", "before", "after"])
+        .zip(labels)
+    {
         let path = dir.join(format!("{name}_{what}.png"));
-        let label = match what {
-            "initial" => "initial state",
-            "before" => "ego before merging",
-            _ => "ego after merging",
-        };
         frame_png(&path, &layout, &scenes[step], step, &format!("{title}: {label}"))?;
         written.push(path);
     }
     let gif = dir.join(format!("{name}.gif"));
-    episode_gif(&gif, &layout_for(config, &scenes, false), &scenes, 5, (5.0 * dt * 1000.0 / 2.0) as u32, title)?;
+    episode_gif(
+        &gif,
+        &layout_for(config, &scenes, false),
+        &scenes,
+        5,
+        (5.0 * dt * 1000.0 / 2.0) as u32,
+        title,
+    )?;
     written.push(gif);
     let t = |k: usize| k as f64 * dt;
-    let speed: Vec<(f64, f64)> = scenes.iter().enumerate().map(|(k, s)| (t(k), s.ego().v)).collect();
-    let actions = outcome.trajectory.as_ref().map(|tr| tr.actions.as_slice()).unwrap_or_default();
+    let speed: Vec<(f64, f64)> = scenes
+        .iter()
+        .enumerate()
+        .map(|(k, s)| (t(k), s.ego().v))
+        .collect();
+    let actions = outcome
+        .trajectory
+        .as_ref()
+        .map(|tr| tr.actions.as_slice())
+        .unwrap_or_default();
     let n = outcome.final_scene.len();
-    let accel: Vec<(f64, f64)> = actions.iter().step_by(n).enumerate().map(|(k, a)| (t(k), *a)).collect();
+    let accel: Vec<(f64, f64)> = actions
+        .iter()
+        .step_by(n)
+        .enumerate()
+        .map(|(k, a)| (t(k), *a))
+        .collect();
     let gap: Vec<(f64, f64)> = ego_gaps(&scenes, config.vehicle.length)
         .into_iter()
         .enumerate()
@@ -112,8 +142,14 @@ pub fn render_episode(
         (1000, 900),
         &[
             (panel(&format!("{title}: ego speed"), "speed (m/s)"), line(speed)),
-            (panel("ego acceleration (applied)", "acceleration (m/s^2)"), line(accel)),
-            (panel("gap to the ego's nearest leader (bumper to bumper)", "gap (m)"), line(gap)),
+            (
+                panel("ego acceleration (applied)", "acceleration (m/s^2)"),
+                line(accel),
+            ),
+            (
+                panel("gap to the ego's nearest leader (bumper to bumper)", "gap (m)"),
+                line(gap),
+            ),
         ],
     )?;
     written.push(series);

@@ -78,7 +78,11 @@ impl Layout {
         let (lo, hi) = extent(scene);
         let x_c = self.conflict_point;
         let (lo_c, hi_c) = (lo.min(x_c - 5.0), hi.max(x_c + 15.0));
-        let (lo, hi) = if hi_c - lo_c + 20.0 <= self.span { (lo_c, hi_c) } else { (lo, hi) };
+        let (lo, hi) = if hi_c - lo_c + 20.0 <= self.span {
+            (lo_c, hi_c)
+        } else {
+            (lo, hi)
+        };
         if hi - lo + 20.0 <= self.span {
             0.5 * (lo + hi) - 0.5 * self.span
         } else {
@@ -91,7 +95,9 @@ fn extent(scene: &Scene) -> (f64, f64) {
     scene
         .vehicles
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v.x), hi.max(v.x)))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v.x), hi.max(v.x))
+        })
 }
 
 /// The span (m) that shows every vehicle of every scene at one scale (and the conflict point
@@ -127,7 +133,10 @@ fn draw_frame<DB: DrawingBackend>(
     ))?;
     if view.x_min < x_c {
         area.draw(&Rectangle::new(
-            [view.to_px(view.x_min, -0.5 * w), view.to_px(x_c.min(x_max), -1.5 * w)],
+            [
+                view.to_px(view.x_min, -0.5 * w),
+                view.to_px(x_c.min(x_max), -1.5 * w),
+            ],
             asphalt.filled(),
         ))?;
         area.draw(&Polygon::new(
@@ -140,7 +149,10 @@ fn draw_frame<DB: DrawingBackend>(
         ))?;
     }
     let paint = WHITE.stroke_width(2);
-    area.draw(&PathElement::new(vec![view.to_px(view.x_min, 0.5 * w), view.to_px(x_max, 0.5 * w)], paint))?;
+    area.draw(&PathElement::new(
+        vec![view.to_px(view.x_min, 0.5 * w), view.to_px(x_max, 0.5 * w)],
+        paint,
+    ))?;
     // Dashed line between the ramp and the target lane, up to the conflict point.
     let mut x = view.x_min - view.x_min.rem_euclid(6.0);
     while x < x_c.min(x_max) {
@@ -153,7 +165,10 @@ fn draw_frame<DB: DrawingBackend>(
     if (view.x_min..x_max).contains(&x_c) {
         let top = view.to_px(x_c, 0.5 * w + 1.0);
         let bottom = view.to_px(x_c, -1.5 * w - 1.0);
-        area.draw(&PathElement::new(vec![top, bottom], RGBColor(230, 140, 0).stroke_width(3)))?;
+        area.draw(&PathElement::new(
+            vec![top, bottom],
+            RGBColor(230, 140, 0).stroke_width(3),
+        ))?;
         area.draw(&Text::new(
             format!("conflict point x_c = {x_c:.0} m"),
             (bottom.0 + 6, bottom.1 - 2),
@@ -170,7 +185,11 @@ fn draw_frame<DB: DrawingBackend>(
             corner(-0.5 * len, -0.5 * wid),
             corner(0.5 * len, -0.5 * wid),
         ];
-        let color = if i == 0 { RGBColor(214, 39, 40) } else { RGBColor(31, 119, 180) };
+        let color = if i == 0 {
+            RGBColor(214, 39, 40)
+        } else {
+            RGBColor(31, 119, 180)
+        };
         area.draw(&Polygon::new(body.clone(), color.filled()))?;
         let mut outline = body;
         outline.push(outline[0]);
@@ -201,7 +220,10 @@ fn draw_frame<DB: DrawingBackend>(
     let bar = view.to_px(view.x_min + 2.0, -1.5 * w);
     let (bx, by) = (bar.0, layout.size.1 as i32 - 12);
     let ten = (10.0 * view.scale).round() as i32;
-    area.draw(&PathElement::new(vec![(bx, by), (bx + ten, by)], BLACK.stroke_width(3)))?;
+    area.draw(&PathElement::new(
+        vec![(bx, by), (bx + ten, by)],
+        BLACK.stroke_width(3),
+    ))?;
     area.draw(&Text::new("10 m", (bx + ten + 6, by - 7), (FONT, 12).into_font()))?;
     area.draw(&Text::new(
         format!("{title}   t = {:.1} s   speeds in m/s", step as f64 * layout.dt),
@@ -212,7 +234,13 @@ fn draw_frame<DB: DrawingBackend>(
 }
 
 /// Draws one frame to a PNG file (written to a temporary name, then renamed).
-pub fn frame_png(path: &Path, layout: &Layout, scene: &Scene, step: usize, title: &str) -> Result<(), RenderError> {
+pub fn frame_png(
+    path: &Path,
+    layout: &Layout,
+    scene: &Scene,
+    step: usize,
+    title: &str,
+) -> Result<(), RenderError> {
     register_font();
     let tmp = atomic::temporary(path);
     let err = draw_error(path);

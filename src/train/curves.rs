@@ -3,8 +3,7 @@
 use std::path::Path;
 
 /// Header of the curves CSV.
-pub const HEADER: &str =
-    "epoch,train_objective,probe_objective,action_msd,probe_collision_rate,probe_failure_rate,wall_seconds,probe_ego_return";
+pub const HEADER: &str = "epoch,train_objective,probe_objective,action_msd,probe_collision_rate,probe_failure_rate,wall_seconds,probe_ego_return";
 
 /// One epoch of training.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

@@ -300,7 +300,14 @@ pub fn train(
             });
         }
 
-        let outcomes = policy_rollout(config, &net, probe_others(run.mode), &probe, t.threads, Recording::Summary)?;
+        let outcomes = policy_rollout(
+            config,
+            &net,
+            probe_others(run.mode),
+            &probe,
+            t.threads,
+            Recording::Summary,
+        )?;
         let m = outcomes.len() as f64;
         let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
         let actions = probe_actions(config, &net, &probe);
