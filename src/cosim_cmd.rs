@@ -19,12 +19,8 @@ pub struct CosimArgs {
     /// Merge geometry (default: merge.toml next to the .sumocfg).
     #[arg(long)]
     merge: Option<PathBuf>,
-    /// MARL policy: a file or a directory of seeds.
-    #[arg(long, default_value = "policies/mpg")]
-    policy: PathBuf,
-    /// Single-agent policy: a file or a directory of seeds.
-    #[arg(long, default_value = "policies/sarl")]
-    sarl_policy: PathBuf,
+    #[command(flatten)]
+    policies: crate::PolicyPair,
     /// Which seed's policy to use from a directory (default: the lowest).
     #[arg(long)]
     policy_seed: Option<u64>,
@@ -132,8 +128,8 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
     let mut runs = Vec::new();
     for c in &args.controllers {
         let (kind, policy) = match c {
-            ControllerArg::Mpg => (ControllerKind::Mpg, Some(&args.policy)),
-            ControllerArg::Sarl => (ControllerKind::Sarl, Some(&args.sarl_policy)),
+            ControllerArg::Mpg => (ControllerKind::Mpg, Some(&args.policies.policy)),
+            ControllerArg::Sarl => (ControllerKind::Sarl, Some(&args.policies.sarl_policy)),
             ControllerArg::Sumo => (ControllerKind::Sumo, None),
         };
         let net = match policy {

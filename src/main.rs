@@ -40,6 +40,17 @@ struct Common {
     threads: Option<usize>,
 }
 
+/// The two trained policies a comparison needs.
+#[derive(Args)]
+struct PolicyPair {
+    /// MARL policy: a file or a directory of one per seed.
+    #[arg(long, default_value = "policies/mpg")]
+    policy: PathBuf,
+    /// Single-agent policy: a file or a directory of one per seed.
+    #[arg(long, default_value = "policies/sarl")]
+    sarl_policy: PathBuf,
+}
+
 mod batch_cmd;
 mod cosim_cmd;
 mod ngsim_cmd;

@@ -52,12 +52,8 @@ enum NgsimCommand {
         /// Paper configuration (vehicle limits, dt, horizon, feasibility rules).
         #[arg(long, default_value = "configs/paper.toml")]
         config: PathBuf,
-        /// MARL policy: a file or a directory of one per seed.
-        #[arg(long, default_value = "policies/mpg")]
-        policy: PathBuf,
-        /// Single-agent policy: a file or a directory of one per seed.
-        #[arg(long, default_value = "policies/sarl")]
-        sarl_policy: PathBuf,
+        #[command(flatten)]
+        policies: crate::PolicyPair,
         /// Output directory.
         #[arg(long, default_value = "results/ngsim")]
         out: PathBuf,
@@ -131,16 +127,15 @@ pub fn run(args: NgsimArgs) -> Result<ExitCode> {
         NgsimCommand::Eval {
             input,
             config,
-            policy,
-            sarl_policy,
+            policies,
             out,
             json,
         } => {
             let config = Config::load(&config)?;
             // One observation per step: one libtorch thread avoids pool overhead.
             tch::set_num_threads(1);
-            let mut mpg = load_policies(&policy, config.n_agents())?;
-            let mut sarl = load_policies(&sarl_policy, config.n_agents())?;
+            let mut mpg = load_policies(&policies.policy, config.n_agents())?;
+            let mut sarl = load_policies(&policies.sarl_policy, config.n_agents())?;
             let (ngsim, prepared) = load_prepared(&input)?;
             let s = &config.scenario;
             let extraction = extract(&prepared, &ngsim, s.n_leaders, s.n_followers);

@@ -114,12 +114,9 @@ pub struct ReportArgs {
     /// Configuration file (TOML).
     #[arg(long, default_value = "configs/paper.toml")]
     config: PathBuf,
-    /// MARL policies: a directory of one per seed (with their training curves).
-    #[arg(long, default_value = "policies/mpg")]
-    policy: PathBuf,
-    /// Single-agent policies: a directory of one per seed.
-    #[arg(long, default_value = "policies/sarl")]
-    sarl_policy: PathBuf,
+    /// Directories of one policy per seed, with their training curves.
+    #[command(flatten)]
+    policies: crate::PolicyPair,
     /// Seed of the MARL policy that drives the specific scenarios (default: the lowest).
     #[arg(long)]
     policy_seed: Option<u64>,
@@ -209,8 +206,8 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         Some(t) => t,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    let mpg = load_policies(&args.policy, config.n_agents())?;
-    let sarl = load_policies(&args.sarl_policy, config.n_agents())?;
+    let mpg = load_policies(&args.policies.policy, config.n_agents())?;
+    let sarl = load_policies(&args.policies.sarl_policy, config.n_agents())?;
     let figures = args.out.join("figures");
     std::fs::create_dir_all(&figures).with_context(|| format!("creating {}", figures.display()))?;
     let command: Vec<String> = std::env::args().collect();
@@ -222,9 +219,9 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     doc.push(Block::Text(format!(
         "mpgdrive {}; configuration `{cfg}`; MARL policies `{}` (seeds {:?}), single-agent policies `{}` (seeds {:?}). Made by `{}`.",
         mpgdrive::VERSION,
-        args.policy.display(),
+        args.policies.policy.display(),
         mpg.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
-        args.sarl_policy.display(),
+        args.policies.sarl_policy.display(),
         sarl.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
         command.join(" ")
     )));
@@ -243,9 +240,9 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     }
     doc.push(Block::Code(format!(
         "{exe} eval --config {cfg} --policy {}\n{exe} eval --config {cfg} --policy {} --ne-policy {}",
-        args.policy.display(),
-        args.sarl_policy.display(),
-        args.policy.display()
+        args.policies.policy.display(),
+        args.policies.sarl_policy.display(),
+        args.policies.policy.display()
     )));
     atomic::write(&args.out.join("table2.md"), marl.markdown())?;
     atomic::write(&args.out.join("table3.md"), single.markdown())?;
@@ -253,7 +250,7 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     // Specific scenarios.
     doc.push(Block::Heading(2, "Specific scenarios".into()));
     for preset in [Preset::One, Preset::Two] {
-        let (files, summary) = scenario(&config, preset, &args.policy, args.policy_seed, &figures)?;
+        let (files, summary) = scenario(&config, preset, &args.policies.policy, args.policy_seed, &figures)?;
         doc.push(Block::Heading(3, format!("Scenario {}", preset.number())));
         doc.push(Block::Text(summary));
         let captions = [
@@ -272,7 +269,7 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         doc.push(Block::Code(format!(
             "{exe} scenario --config {cfg} --preset {} --policy {}{}",
             preset.number(),
-            args.policy.display(),
+            args.policies.policy.display(),
             args.policy_seed
                 .map_or(String::new(), |s| format!(" --policy-seed {s}"))
         )));
@@ -283,8 +280,8 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     let seeds = |p: &[(mpgdrive::policy::PolicyNet, mpgdrive::policy::file::Sidecar)]| -> Vec<u64> {
         p.iter().map(|(_, s)| s.seed).collect()
     };
-    let mpg_curves = curves_of(&args.policy, &seeds(&mpg))?;
-    let sarl_curves = curves_of(&args.sarl_policy, &seeds(&sarl))?;
+    let mpg_curves = curves_of(&args.policies.policy, &seeds(&mpg))?;
+    let sarl_curves = curves_of(&args.policies.sarl_policy, &seeds(&sarl))?;
     let fig7 = figures.join("training_potential.png");
     let fig8 = figures.join("training_action_msd.png");
     panels_png(

@@ -45,3 +45,16 @@ pub fn fresh_dir(name: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
+
+/// The real NGSIM sample of ../shared/data/ngsim, when it is there (a clone elsewhere may not
+/// have it: the tests that need it say so and pass).
+pub fn real_sample() -> Option<std::path::PathBuf> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/ngsim/i80_0400_lanes1-3_reconstructed.csv");
+    if path.is_file() {
+        Some(path)
+    } else {
+        eprintln!("skipped: {} is not here", path.display());
+        None
+    }
+}

@@ -1,6 +1,9 @@
 //! NGSIM loading (both official layouts, the real sample) and Savitzky-Golay smoothing against
 //! scipy.
 
+mod common;
+
+use common::real_sample;
 use mpgdrive::ngsim::load::{FOOT, NgsimError, load};
 use mpgdrive::ngsim::smooth::{savgol, savgol_segments};
 use std::path::{Path, PathBuf};
@@ -121,12 +124,9 @@ fn the_csv_layout_filters_its_location_and_refuses_foreign_files() {
 #[test]
 fn the_real_sample_loads_and_smoothing_barely_moves_its_reconstructed_traces() {
     // ../shared/data/ngsim: 142 vehicles, 68,339 rows, lanes 1-3, already smooth (EMD).
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/ngsim/i80_0400_lanes1-3_reconstructed.csv");
-    if !path.is_file() {
-        eprintln!("skipped: {} is not here", path.display());
+    let Some(path) = real_sample() else {
         return;
-    }
+    };
     let t = load(&path, "i-80").unwrap();
     assert_eq!((t.vehicles.len(), t.rows, t.skipped), (142, 68_339, 0));
     let first = &t.vehicles[&47][0];

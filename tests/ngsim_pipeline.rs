@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{bin, fresh_dir, paper};
+use common::{bin, fresh_dir, paper, real_sample};
 use mpgdrive::ngsim::config::NgsimConfig;
 use mpgdrive::ngsim::load::load;
 use mpgdrive::ngsim::process::{Prepared, prepare};
@@ -186,12 +186,9 @@ fn replay_follows_the_record_and_drives_a_policy_ego_from_the_human_start() {
 
 #[test]
 fn the_real_sample_prepares_cleanly_and_has_no_merge_scenarios() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/ngsim/i80_0400_lanes1-3_reconstructed.csv");
-    if !path.is_file() {
-        eprintln!("skipped: {} is not here", path.display());
+    let Some(path) = real_sample() else {
         return;
-    }
+    };
     let ngsim = ngsim_config();
     let prepared = prepare(&load(&path, "i-80").unwrap(), &ngsim).unwrap();
     let s = &prepared.summary;
