@@ -28,10 +28,22 @@ fn assert_rejected(out: &Output, needles: &[&str]) {
 
 #[test]
 fn three_controllers_run_side_by_side_and_write_their_results() {
-    let out_dir = temp_dir("run");
+    // A relative --out, as users type it: SUMO alone would resolve its output files against
+    // the .sumocfg's folder.
+    let relative = format!("target/test-cosim-run-{}", std::process::id());
+    let out_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join(&relative);
+    let _ = std::fs::remove_dir_all(&out_dir);
     let out = bin()
-        .args(["cosim", "--sumocfg", CFG, "--end", "60", "--json", "--out"])
-        .arg(&out_dir)
+        .args([
+            "cosim",
+            "--sumocfg",
+            CFG,
+            "--end",
+            "60",
+            "--json",
+            "--out",
+            &relative,
+        ])
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

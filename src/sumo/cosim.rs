@@ -169,14 +169,14 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         "--no-step-log".into(),
         "true".into(),
         "--tripinfo-output".into(),
-        tripinfo.display().to_string(),
+        absolute(tripinfo),
         "--device.ssm.file".into(),
-        ssm.display().to_string(),
+        absolute(ssm),
         "--tripinfo-output.write-unfinished".into(),
         "true".into(),
     ];
     if let Some(routes) = &settings.route_files {
-        args.extend(["--route-files".into(), routes.display().to_string()]);
+        args.extend(["--route-files".into(), absolute(routes)]);
     }
     if binary == "sumo-gui" {
         args.extend([
@@ -187,6 +187,15 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         ]);
     }
     args
+}
+
+/// A path for SUMO's command line: absolute, since SUMO resolves relative paths against the
+/// configuration file's folder, not the working directory.
+fn absolute(path: &Path) -> String {
+    std::path::absolute(path)
+        .unwrap_or_else(|_| path.to_path_buf())
+        .display()
+        .to_string()
 }
 
 /// Whether a run goes on: before `end` (to half a step) and with vehicles still expected.
