@@ -185,6 +185,16 @@ pub struct TrainConfig {
     pub checkpoint_every: usize,
     /// libtorch intra-op threads.
     pub threads: usize,
+    /// Initialisations screened before training (1: none; the run's own seed).
+    #[serde(default = "one")]
+    pub init_candidates: usize,
+    /// Epochs each screened initialisation trains before the best probe objective is kept.
+    #[serde(default)]
+    pub screen_epochs: usize,
+}
+
+fn one() -> usize {
+    1
 }
 
 /// Reads a TOML file into `T` (unknown keys refused when `T` says so).
@@ -351,6 +361,19 @@ impl Config {
             "sampling.strata",
             p.strata[0] >= 1 && p.strata[1] >= 1,
             "both counts must be at least 1".into(),
+        )?;
+        check(
+            "train.init_candidates",
+            self.train.init_candidates >= 1,
+            "must be at least 1".into(),
+        )?;
+        check(
+            "train.screen_epochs",
+            self.train.init_candidates == 1 || (1..=self.train.epochs).contains(&self.train.screen_epochs),
+            format!(
+                "{} must lie in [1, train.epochs] when several initialisations are screened",
+                self.train.screen_epochs
+            ),
         )?;
         check(
             "eval.seeds",

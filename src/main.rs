@@ -309,6 +309,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     .context("progress bar template")?,
                 );
                 bar.set_prefix(format!("{} seed {seed}", mode.name()));
+                let t = &config.train;
+                if t.init_candidates > 1 && !resume {
+                    bar.set_message(format!(
+                        "screening {} initialisations, {} epochs each",
+                        t.init_candidates, t.screen_epochs
+                    ));
+                }
                 let result = train(&config, &run, &stop, &mut |r| {
                     bar.set_message(format!("objective {:.1}", r.probe_objective));
                     bar.set_position(r.epoch as u64);
@@ -331,6 +338,19 @@ fn run(cli: Cli) -> Result<ExitCode> {
                         r.probe_collision_rate,
                         r.probe_failure_rate,
                         run.out.display()
+                    );
+                }
+                let sidecar = mpgdrive::policy::file::paths(&run.out).1;
+                let screening = std::fs::read_to_string(&sidecar)
+                    .ok()
+                    .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
+                    .and_then(|v| v["metrics"].get("init_screening").cloned());
+                if let Some(s) = screening {
+                    outln!(
+                        "  initialisation {} kept (probe objectives after {} epochs: {})",
+                        s["chosen"],
+                        s["screen_epochs"],
+                        s["probe_objectives"]
                     );
                 }
             }

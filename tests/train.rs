@@ -237,3 +237,36 @@ fn learning_rate_decays_exponentially_to_its_final_value() {
     approx::assert_relative_eq!(lr[1], 1e-3, max_relative = 1e-12);
     approx::assert_relative_eq!(lr[2], 1e-4, max_relative = 1e-12);
 }
+
+#[test]
+fn screening_keeps_the_initialisation_with_the_best_probe_objective() {
+    let mut config = smoke();
+    config.train.epochs = 4;
+    // Candidate 0 is the run's own initialisation: screened for 2 epochs, its probe objective
+    // is the plain run's after epoch 2.
+    let plain = train(
+        &config,
+        &run(Mode::Mpg, &out_dir("screen-plain")),
+        &NO_STOP,
+        &mut |_| {},
+    )
+    .unwrap();
+    config.train.init_candidates = 3;
+    config.train.screen_epochs = 2;
+    let dir = out_dir("screen");
+    let records = train(&config, &run(Mode::Mpg, &dir), &NO_STOP, &mut |_| {}).unwrap();
+    let side: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("seed3.json")).unwrap()).unwrap();
+    let s = &side["metrics"]["init_screening"];
+    let objectives: Vec<f64> = serde_json::from_value(s["probe_objectives"].clone()).unwrap();
+    assert_eq!(objectives.len(), 3);
+    assert_eq!(objectives[0], plain[1].probe_objective);
+    let best = (0..3).fold(0, |b, c| if objectives[c] > objectives[b] { c } else { b });
+    assert_eq!(s["chosen"], best);
+    // The kept candidate then trains from scratch: its epoch 2 is its screening result.
+    assert_eq!(records[1].probe_objective, objectives[best]);
+    assert!(
+        objectives.iter().any(|&o| o != objectives[0]),
+        "the candidates differ: {objectives:?}"
+    );
+}

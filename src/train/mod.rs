@@ -213,6 +213,122 @@ pub fn learning_rate(t: &crate::config::TrainConfig, epoch: usize) -> f64 {
     t.learning_rate * (t.learning_rate_final / t.learning_rate).powf(progress)
 }
 
+/// One epoch of Algorithm 1: gradient ascent on the objective over the epoch's minibatch of
+/// training states (the learning-rate schedule of `epoch`). Returns the minibatch objective.
+fn gradient_step(
+    config: &Config,
+    run: &TrainRun,
+    net: &PolicyNet,
+    opt: &mut tch::nn::Optimizer,
+    epoch: usize,
+) -> Result<f64, TrainError> {
+    let t = &config.train;
+    let train_seed = purpose_seed(run.seed, Purpose::Train);
+    opt.set_lr(learning_rate(t, epoch));
+    let scenes = sample_scenes(config, train_seed, epoch * t.batch, t.batch);
+    let out = tensor::rollout(
+        config,
+        &scenes,
+        Kind::Float,
+        config.n_steps(),
+        config.sim.feasibility,
+        config.sim.terminate_on_collision,
+        |b, nb, _| tensor_actions(config, &net, run.mode, b, nb),
+    );
+    let objective_t = match run.mode {
+        Mode::Mpg => out.potential.mean(Kind::Float),
+        Mode::Sarl => out.returns.select(1, 0).mean(Kind::Float),
+    };
+    let train_objective = objective_t.double_value(&[]);
+    if !train_objective.is_finite() {
+        return Err(TrainError::Diverged {
+            epoch: epoch + 1,
+            value: train_objective,
+        });
+    }
+    opt.backward_step_clip_norm(&(-&objective_t), t.grad_clip);
+    // A NaN gradient would poison the parameters without changing this epoch's objective.
+    let finite = net
+        .vs
+        .trainable_variables()
+        .iter()
+        .all(|p| p.isfinite().all().int64_value(&[]) == 1);
+    if !finite {
+        return Err(TrainError::Diverged {
+            epoch: epoch + 1,
+            value: f64::NAN,
+        });
+    }
+    Ok(train_objective)
+}
+
+/// The sidecar metrics: the last epoch's record, plus the initialisation screening if any.
+fn sidecar_metrics(records: &[EpochRecord], screening: &Option<serde_json::Value>) -> serde_json::Value {
+    let mut m = serde_json::json!(records.last());
+    if let (Some(s), Some(obj)) = (screening, m.as_object_mut()) {
+        obj.insert("init_screening".into(), s.clone());
+    }
+    m
+}
+
+/// The libtorch seed of initialisation candidate `candidate` of a run: candidate 0 is the
+/// run's own seed (so one candidate trains exactly as before screening existed).
+pub fn init_seed(seed: u64, candidate: usize) -> i64 {
+    seed as i64 + 1000 * candidate as i64
+}
+
+/// Initialisation screening: each candidate initialisation trains for `screen_epochs`, and
+/// the one with the best probe objective is kept.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct InitScreening {
+    /// Epochs each candidate trained.
+    pub screen_epochs: usize,
+    /// Probe objective of each candidate after them.
+    pub probe_objectives: Vec<f64>,
+    /// The candidate kept (the first of the best).
+    pub chosen: usize,
+}
+
+/// Screens `train.init_candidates` initialisations (see [`InitScreening`]).
+fn screen_inits(config: &Config, run: &TrainRun, probe: &[Scene]) -> Result<InitScreening, TrainError> {
+    let t = &config.train;
+    let mut probe_objectives = Vec::with_capacity(t.init_candidates);
+    for c in 0..t.init_candidates {
+        tch::manual_seed(init_seed(run.seed, c));
+        let net = PolicyNet::new(NetSpec::new(
+            config.n_agents(),
+            t.hidden,
+            config.vehicle.max_accel,
+        ));
+        let mut opt = tch::nn::Adam::default().build(&net.vs, t.learning_rate)?;
+        for epoch in 0..t.screen_epochs {
+            gradient_step(config, run, &net, &mut opt, epoch)?;
+        }
+        let outcomes = policy_rollout(
+            config,
+            &net,
+            probe_others(run.mode),
+            probe,
+            t.threads,
+            Recording::Summary,
+        )?;
+        probe_objectives
+            .push(outcomes.iter().map(|o| objective(run.mode, o)).sum::<f64>() / outcomes.len() as f64);
+    }
+    let chosen = (0..probe_objectives.len()).fold(0, |best, c| {
+        if probe_objectives[c] > probe_objectives[best] {
+            c
+        } else {
+            best
+        }
+    });
+    Ok(InitScreening {
+        screen_epochs: t.screen_epochs,
+        probe_objectives,
+        chosen,
+    })
+}
+
 /// Trains one policy; `on_epoch` sees every epoch's record. Returns the curves.
 ///
 /// When `stop` becomes true, training ends after the current epoch with a checkpoint and
@@ -237,6 +353,8 @@ pub fn train(
     }
     let ckpt = checkpoint_path(&run.out);
     let curves = curves_path(&run.out);
+    // Recorded in the sidecars' metrics (and carried through a resumed checkpoint).
+    let mut screening: Option<serde_json::Value> = None;
     if run.resume && file::paths(&ckpt).1.exists() {
         let (loaded, side) = file::load(&ckpt, n)?;
         if side.mode != run.mode.name() || side.seed != run.seed || side.config != *config {
@@ -246,59 +364,31 @@ pub fn train(
             });
         }
         net = loaded;
+        screening = side.metrics.get("init_screening").cloned();
         records = curves::read(&curves).map_err(|source| TrainError::Io {
             path: curves.clone(),
             source,
         })?;
         records.truncate(side.epochs);
     }
-    let mut opt = tch::nn::Adam::default().build(&net.vs, t.learning_rate)?;
     let probe = sample_scenes(
         config,
         purpose_seed(run.seed, Purpose::Probe),
         0,
         t.probe_scenarios,
     );
-    let train_seed = purpose_seed(run.seed, Purpose::Train);
+    if records.is_empty() && t.init_candidates > 1 {
+        let result = screen_inits(config, run, &probe)?;
+        tch::manual_seed(init_seed(run.seed, result.chosen));
+        net = PolicyNet::new(NetSpec::new(n, t.hidden, config.vehicle.max_accel));
+        screening = Some(serde_json::json!(result));
+    }
+    let mut opt = tch::nn::Adam::default().build(&net.vs, t.learning_rate)?;
     let mut previous = probe_actions(config, &net, &probe);
     let start = Instant::now();
     let elapsed_before = records.last().map_or(0.0, |r| r.wall_seconds);
     for epoch in records.len()..t.epochs {
-        opt.set_lr(learning_rate(t, epoch));
-        let scenes = sample_scenes(config, train_seed, epoch * t.batch, t.batch);
-        let out = tensor::rollout(
-            config,
-            &scenes,
-            Kind::Float,
-            config.n_steps(),
-            config.sim.feasibility,
-            config.sim.terminate_on_collision,
-            |b, nb, _| tensor_actions(config, &net, run.mode, b, nb),
-        );
-        let objective_t = match run.mode {
-            Mode::Mpg => out.potential.mean(Kind::Float),
-            Mode::Sarl => out.returns.select(1, 0).mean(Kind::Float),
-        };
-        let train_objective = objective_t.double_value(&[]);
-        if !train_objective.is_finite() {
-            return Err(TrainError::Diverged {
-                epoch: epoch + 1,
-                value: train_objective,
-            });
-        }
-        opt.backward_step_clip_norm(&(-&objective_t), t.grad_clip);
-        // A NaN gradient would poison the parameters without changing this epoch's objective.
-        let finite = net
-            .vs
-            .trainable_variables()
-            .iter()
-            .all(|p| p.isfinite().all().int64_value(&[]) == 1);
-        if !finite {
-            return Err(TrainError::Diverged {
-                epoch: epoch + 1,
-                value: f64::NAN,
-            });
-        }
+        let train_objective = gradient_step(config, run, &net, &mut opt, epoch)?;
 
         let outcomes = policy_rollout(
             config,
@@ -336,7 +426,13 @@ pub fn train(
             file::save(
                 &ckpt,
                 &net,
-                &sidecar(config, run, &net, epoch + 1, serde_json::json!(records.last())),
+                &sidecar(
+                    config,
+                    run,
+                    &net,
+                    epoch + 1,
+                    sidecar_metrics(&records, &screening),
+                ),
             )?;
             if interrupted {
                 return Err(TrainError::Interrupted {
@@ -353,7 +449,7 @@ pub fn train(
     file::save(
         &run.out,
         &net,
-        &sidecar(config, run, &net, t.epochs, serde_json::json!(records.last())),
+        &sidecar(config, run, &net, t.epochs, sidecar_metrics(&records, &screening)),
     )?;
     for path in [file::paths(&ckpt).0, file::paths(&ckpt).1] {
         let _ = std::fs::remove_file(path); // the finished policy supersedes the checkpoint
