@@ -233,7 +233,7 @@ fn gradient_step(
         config.n_steps(),
         config.sim.feasibility,
         config.sim.terminate_on_collision,
-        |b, nb, _| tensor_actions(config, &net, run.mode, b, nb),
+        |b, nb, _| tensor_actions(config, net, run.mode, b, nb),
     );
     let objective_t = match run.mode {
         Mode::Mpg => out.potential.mean(Kind::Float),
