@@ -206,6 +206,14 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         Some(t) => t,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
+    for dir in [&args.policies.policy, &args.policies.sarl_policy] {
+        if !dir.is_dir() {
+            return Err(crate::usage(format!(
+                "{}: the report needs a directory of one policy per seed (with their curves)",
+                dir.display()
+            )));
+        }
+    }
     let mpg = load_policies(&args.policies.policy, config.n_agents())?;
     let sarl = load_policies(&args.policies.sarl_policy, config.n_agents())?;
     let figures = args.out.join("figures");
