@@ -116,7 +116,7 @@ pub fn run(args: NgsimArgs) -> Result<ExitCode> {
             write(&out, "trajectories.csv", prepared.csv())?;
             let summary = serde_json::to_string_pretty(&prepared.summary)?;
             write(&out, "summary.json", &summary)?;
-            println!("{summary}");
+            crate::print(&summary)?;
             eprintln!(
                 "prepared {} in {:.1} s: {}",
                 input.input.display(),
@@ -203,9 +203,9 @@ pub fn run(args: NgsimArgs) -> Result<ExitCode> {
             write(&out, "episodes.csv", result.episodes_csv())?;
             write(&out, "scenarios.csv", scenarios)?;
             if json {
-                println!("{report}");
+                crate::print(&report)?;
             } else {
-                println!("{markdown}");
+                crate::print(&markdown)?;
             }
             eprintln!("results in {}", out.display());
         }

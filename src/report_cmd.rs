@@ -101,10 +101,11 @@ pub fn run_scenario(args: ScenarioArgs) -> Result<ExitCode> {
         Preset::Two
     };
     let (files, summary) = scenario(&config, preset, &args.policy, args.policy_seed, &args.out)?;
-    println!("{summary}");
+    let mut text = summary;
     for f in files {
-        println!("  {}", f.display());
+        text += &format!("\n  {}", f.display());
     }
+    crate::print(&text)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -418,13 +419,13 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         }
     }
     let (md, html) = doc.write(&args.out, title)?;
-    println!("{}", marl.markdown());
-    println!(
+    crate::print(&marl.markdown())?;
+    crate::print(&format!(
         "report: {} ({}), {:.0} s",
         html.display(),
         md.display(),
         t0.elapsed().as_secs_f64()
-    );
+    ))?;
     Ok(ExitCode::SUCCESS)
 }
 
