@@ -246,12 +246,16 @@ fn main() -> ExitCode {
 fn load(common: &Common) -> Result<(Config, u64, usize)> {
     let config = Config::load(&common.config)?;
     let seed = common.seed.unwrap_or(config.seed);
-    let threads = match common.threads {
-        Some(0) => return Err(usage("--threads must be at least 1")),
-        Some(t) => t,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
-    };
-    Ok((config, seed, threads))
+    Ok((config, seed, threads(common.threads)?))
+}
+
+/// `--threads`: at least 1; all cores when not given.
+fn threads(given: Option<usize>) -> Result<usize> {
+    match given {
+        Some(0) => Err(usage("--threads must be at least 1")),
+        Some(t) => Ok(t),
+        None => Ok(std::thread::available_parallelism().map_or(1, |n| n.get())),
+    }
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {

@@ -202,11 +202,7 @@ fn quantiles(study: &Study, surrounding: Surrounding) -> Vec<(f64, f64)> {
 pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let config = Config::load(&args.config)?;
-    let threads = match args.threads {
-        Some(0) => return Err(crate::usage("--threads must be at least 1")),
-        Some(t) => t,
-        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
-    };
+    let threads = crate::threads(args.threads)?;
     for dir in [&args.policies.policy, &args.policies.sarl_policy] {
         if !dir.is_dir() {
             return Err(crate::usage(format!(

@@ -25,10 +25,10 @@ use crate::ngsim::scenario::MergeScenario;
 use crate::policy::file::Sidecar;
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::{BatchPolicy, obs_dim, observe};
-use crate::sim::dynamics::{Axles, Kinematics, bicycle_step};
+use crate::sim::dynamics::Axles;
 use crate::sim::geometry::{Footprint, Road, boxes_overlap};
 use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::{EgoStats, applied_action};
+use crate::sim::rollout::{EgoStats, advance, applied_action};
 use crate::sim::state::{Scene, Vehicle};
 use serde::Serialize;
 
@@ -147,27 +147,7 @@ pub fn replay(
         let ego = if human {
             recorded(ego_track, start + step as u32 + 1, ngsim)
         } else {
-            let e = scene.ego();
-            let k = bicycle_step(
-                &Kinematics {
-                    x: e.x,
-                    y: e.y,
-                    v: e.v,
-                    phi: e.phi,
-                },
-                &accel,
-                &0.0,
-                axles,
-                dt,
-            );
-            let on_ramp = road.still_on_ramp(e.on_ramp, k.x);
-            Vehicle {
-                x: k.x,
-                y: road.lane_y(on_ramp),
-                v: k.v,
-                phi: k.phi,
-                on_ramp,
-            }
+            advance(scene.ego(), accel, &road, axles, dt)
         };
         scene = scene_at(step + 1, ego);
         scenes.push(scene.clone());

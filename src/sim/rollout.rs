@@ -361,26 +361,7 @@ fn run_chunk(
             out.potential_return += discount * rewards.potential;
             out.ego.update(scene, applied[0], dt);
             for (v, &u) in scene.vehicles.iter_mut().zip(&applied) {
-                let k = bicycle_step(
-                    &Kinematics {
-                        x: v.x,
-                        y: v.y,
-                        v: v.v,
-                        phi: v.phi,
-                    },
-                    &u,
-                    &0.0,
-                    axles,
-                    dt,
-                );
-                let on_ramp = road.still_on_ramp(v.on_ramp, k.x);
-                *v = Vehicle {
-                    x: k.x,
-                    y: road.lane_y(on_ramp),
-                    v: k.v,
-                    phi: k.phi,
-                    on_ramp,
-                };
+                *v = advance(v, u, &road, axles, dt);
             }
             out.steps = step + 1;
             if out.ego_merged_at.is_none() && !scene.ego().on_ramp {
@@ -415,6 +396,32 @@ fn run_chunk(
         out.final_scene = scene;
     }
     outcomes
+}
+
+/// A vehicle after one step of eq. (1) with acceleration `u` and zero steering; a ramp
+/// vehicle whose `x` reaches `x_c` joins the target lane (its lateral position follows the
+/// lane geometry). One step for the rollout and the NGSIM replay.
+pub fn advance(v: &Vehicle, u: f64, road: &Road, axles: Axles, dt: f64) -> Vehicle {
+    let k = bicycle_step(
+        &Kinematics {
+            x: v.x,
+            y: v.y,
+            v: v.v,
+            phi: v.phi,
+        },
+        &u,
+        &0.0,
+        axles,
+        dt,
+    );
+    let on_ramp = road.still_on_ramp(v.on_ramp, k.x);
+    Vehicle {
+        x: k.x,
+        y: road.lane_y(on_ramp),
+        v: k.v,
+        phi: k.phi,
+        on_ramp,
+    }
 }
 
 /// Weight of a reward held from step `step + 1` to the last step `steps - 1`:
