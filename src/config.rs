@@ -90,6 +90,14 @@ pub struct SimConfig {
     /// `|x_i - x_j| - length - safety_gap`, so a platoon held at TTC = tau_s settles this far
     /// apart instead of bumper to bumper.
     pub safety_gap: f64,
+    /// With `feasibility`: also hold a ramp vehicle able to stop before `x_c` while entering
+    /// the target lane is not safe (the merge gate, [`crate::sim::merge_gate`]). Off when
+    /// absent (files written before it existed).
+    #[serde(default)]
+    pub merge_gate: bool,
+    /// Largest braking a merge may ask of the new follower or of the merging vehicle (m/s^2).
+    #[serde(default = "default_b_safe")]
+    pub b_safe: f64,
     /// End the episode for everyone at the first collision.
     pub terminate_on_collision: bool,
     /// With termination: charge each player its collision-step reward for every remaining
@@ -195,6 +203,11 @@ pub struct TrainConfig {
 
 fn one() -> usize {
     1
+}
+
+/// MOBIL's safe braking (Kesting, Treiber and Helbing 2007).
+fn default_b_safe() -> f64 {
+    4.0
 }
 
 /// Reads a TOML file into `T` (unknown keys refused when `T` says so).
@@ -330,6 +343,7 @@ impl Config {
         )?;
         positive("sim.tau_s", m.tau_s)?;
         non_negative("sim.safety_gap", m.safety_gap)?;
+        positive("sim.b_safe", m.b_safe)?;
         non_negative("reward.v_desired", r.v_desired)?;
         positive("reward.v_c", r.v_c)?;
         positive("reward.epsilon", r.epsilon)?;

@@ -21,6 +21,7 @@ use crate::game::reward::{PairReward, PaperReward, StepRewards, TermValues};
 use crate::sim::dynamics::{Axles, Kinematics, bicycle_step};
 use crate::sim::geometry::{Footprint, Road, boxes_overlap};
 use crate::sim::idm::idm_accel;
+use crate::sim::merge_gate::{GateRules, gate_holds, stop_bound};
 use crate::sim::neighbors::{Neighbors, find_neighbors};
 use crate::sim::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
 use crate::sim::state::{Scene, Vehicle};
@@ -432,8 +433,9 @@ pub fn tail_weight(gamma: f64, step: usize, steps: usize) -> f64 {
     (step + 1..steps).map(|k| gamma.powi(k as i32)).sum()
 }
 
-/// The acceleration player `i` of `scene` applies for the raw action `raw`: projected onto its
-/// feasible interval when `feasibility` is on and it is in the target lane, then clipped to
+/// The acceleration player `i` of `scene` applies for the raw action `raw`: when `feasibility`
+/// is on, projected onto its feasible interval in the target lane, or held by the merge gate
+/// on the ramp (`sim.merge_gate`, [`crate::sim::merge_gate`]); then clipped to
 /// `[-g, g]` and the speed bounds (Section V-ii). One function for the internal simulator and
 /// the SUMO co-simulation.
 pub fn applied_action(
@@ -454,6 +456,10 @@ pub fn applied_action(
         let clearance = veh.length + config.sim.safety_gap;
         let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, clearance, dt, config.sim.tau_s);
         a = project_feasible(&a, &lo, &hi);
+    }
+    let rules = GateRules::new(config);
+    if feasibility && config.sim.merge_gate && gate_holds(scene, i, &rules, veh.max_accel) {
+        a = a.min(stop_bound(&me.x, &me.v, rules.conflict_point, veh.max_accel, dt));
     }
     clip_action(&a, &me.v, veh.max_accel, veh.v_min, veh.v_max, dt)
 }

@@ -11,6 +11,7 @@ use crate::game::terms;
 use crate::num::Num;
 use crate::sim::dynamics::{Axles, Kinematics, bicycle_step};
 use crate::sim::idm::idm_accel;
+use crate::sim::merge_gate::{GateRules, gate_holds, stop_bound};
 use crate::sim::neighbors::find_neighbors;
 use crate::sim::rollout::{first_collision, tail_weight};
 use crate::sim::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
@@ -158,8 +159,8 @@ pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> 
     idm_accel(&batch.x, &batch.v, &leader, config.vehicle.length, &config.idm)
 }
 
-/// Applied actions: feasibility projection for target-lane players (when `feasibility`), then
-/// `[-g, g]` and the speed bounds.
+/// Applied actions: feasibility projection for target-lane players and the merge gate for
+/// ramp players (when `feasibility`), then `[-g, g]` and the speed bounds.
 pub fn apply_limits(
     config: &Config,
     batch: &TensorBatch,
@@ -181,11 +182,39 @@ pub fn apply_limits(
             dt,
             config.sim.tau_s,
         );
-        <Tensor as Num>::select(&batch.on_ramp, raw, &project_feasible(raw, &lo, &hi))
+        let lane = <Tensor as Num>::select(&batch.on_ramp, raw, &project_feasible(raw, &lo, &hi));
+        if config.sim.merge_gate {
+            merge_gate(config, batch, &lane)
+        } else {
+            lane
+        }
     } else {
         raw.shallow_clone()
     };
     clip_action(&a, &batch.v, veh.max_accel, veh.v_min, veh.v_max, dt)
+}
+
+/// The merge gate on `a`: ramp players it holds get `min(a, stop bound)`.
+fn merge_gate(config: &Config, batch: &TensorBatch, a: &Tensor) -> Tensor {
+    let rules = GateRules::new(config);
+    let closed: Vec<f64> = batch
+        .to_scenes()
+        .iter()
+        .flat_map(|s| {
+            (0..s.len()).map(move |i| f64::from(u8::from(gate_holds(s, i, &rules, config.vehicle.max_accel))))
+        })
+        .collect();
+    let closed = Tensor::from_slice(&closed)
+        .reshape(batch.x.size())
+        .to_kind(batch.x.kind());
+    let bound = stop_bound(
+        &batch.x,
+        &batch.v,
+        rules.conflict_point,
+        config.vehicle.max_accel,
+        rules.dt,
+    );
+    <Tensor as Num>::select(&closed, &Num::min(a, &bound), a)
 }
 
 /// Rewards `r_i` (`[batch, agents]`) and potential `phi` (`[batch]`) of the paper's reward.

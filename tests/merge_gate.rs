@@ -1,0 +1,151 @@
+//! The merge gate on worked cases: when a ramp vehicle may enter, and the stopping bound.
+
+mod common;
+
+use approx::assert_abs_diff_eq;
+use common::{car, scene};
+use mpgdrive::sim::merge_gate::{GateRules, STOP_MARGIN, entry_is_safe, gate_holds, stop_bound};
+
+/// x_c = 180 m, 5 m cars with a 2 m safety gap, b_safe = 4 m/s^2, tau_s = 3 s, dt = 0.1 s.
+fn rules() -> GateRules {
+    GateRules {
+        conflict_point: 180.0,
+        clearance: 7.0,
+        b_safe: 4.0,
+        horizon: 3.0,
+        dt: 0.1,
+    }
+}
+
+#[test]
+fn a_stopped_ego_waits_for_a_follower_that_could_not_brake_in_time() {
+    // Ego stopped at 179.9 m: at its current speed it never reaches x_c, so every step from
+    // 0.2 s to tau_s = 3 s is a possible entry. A follower at 10 m/s needs a gap of
+    // 10^2 / (2 * 4) = 12.5 m beyond the 7 m clearance, so its centre must stay at or behind
+    // 179.9 - 19.5 = 160.4 m until 3 s: it may start at up to 130.4 m.
+    let ego = car(179.9, 0.0, true);
+    assert!(entry_is_safe(
+        &scene(vec![ego, car(130.3, 10.0, false)]),
+        0,
+        &rules()
+    ));
+    assert!(!entry_is_safe(
+        &scene(vec![ego, car(130.5, 10.0, false)]),
+        0,
+        &rules()
+    ));
+    // A follower no faster than the ego asks for no braking: only the clearance counts.
+    assert!(entry_is_safe(
+        &scene(vec![ego, car(172.8, 0.0, false)]),
+        0,
+        &rules()
+    ));
+    assert!(!entry_is_safe(
+        &scene(vec![ego, car(173.0, 0.0, false)]),
+        0,
+        &rules()
+    ));
+}
+
+#[test]
+fn entries_are_checked_until_the_ego_would_reach_x_c_at_its_speed() {
+    // Ego at 176 m and 8 m/s: it reaches x_c in 0.5 s, so entries at 0.2 to 0.5 s count. Behind
+    // a stopped leader it needs 7 + 8^2 / (2 * 4) = 15 m at entry; the last check (0.5 s, ego
+    // at 180 m) asks for the leader beyond 195 m.
+    let ego = car(176.0, 8.0, true);
+    assert!(entry_is_safe(
+        &scene(vec![ego, car(195.1, 0.0, false)]),
+        0,
+        &rules()
+    ));
+    assert!(!entry_is_safe(
+        &scene(vec![ego, car(194.9, 0.0, false)]),
+        0,
+        &rules()
+    ));
+}
+
+#[test]
+fn a_committed_ego_is_not_held() {
+    // A car beside the ego makes every entry unsafe. At 170 m and 8.5 m/s the ego can still
+    // stop (after the step: 170.85 m, 9.05 m before the line, v' <= 12.4 m/s), so the gate
+    // holds it; at 177.2 m (1.85 m before the line after the step, v' <= 5.1 m/s, a <= -34
+    // m/s^2 < -g) it cannot, and the gate lets it go.
+    let g = 9.81;
+    let held = scene(vec![car(170.0, 8.5, true), car(170.0, 12.0, false)]);
+    assert!(!entry_is_safe(&held, 0, &rules()) && gate_holds(&held, 0, &rules(), g));
+    let committed = scene(vec![car(177.2, 8.5, true), car(177.2, 12.0, false)]);
+    assert!(!entry_is_safe(&committed, 0, &rules()) && !gate_holds(&committed, 0, &rules(), g));
+    // A target-lane vehicle is never held.
+    assert!(!gate_holds(
+        &scene(vec![car(170.0, 8.5, false), car(170.0, 12.0, false)]),
+        0,
+        &rules(),
+        g
+    ));
+}
+
+#[test]
+fn the_leader_at_entry_needs_the_clearance_and_an_absorbable_closing_speed() {
+    let ego = car(179.9, 0.0, true);
+    // Pulling away: 8.1 m apart at 0.2 s, more than the 7 m clearance, and growing.
+    assert!(entry_is_safe(
+        &scene(vec![ego, car(186.0, 10.0, false)]),
+        0,
+        &rules()
+    ));
+    // Stopped 6.9 m ahead (centre to centre): inside the 7 m clearance.
+    assert!(!entry_is_safe(
+        &scene(vec![ego, car(186.8, 0.0, false)]),
+        0,
+        &rules()
+    ));
+    // An ego at 10 m/s (entry at 0.2 s, x_e = 181.9) behind a stopped car 20 m ahead of that:
+    // a 13 m gap absorbs the 12.5 m that stopping from 10 m/s at 4 m/s^2 takes; 12.4 m does not.
+    let fast = car(179.9, 10.0, true);
+    assert!(entry_is_safe(
+        &scene(vec![fast, car(201.9, 0.0, false)]),
+        0,
+        &rules()
+    ));
+    assert!(!entry_is_safe(
+        &scene(vec![fast, car(201.3, 0.0, false)]),
+        0,
+        &rules()
+    ));
+}
+
+#[test]
+fn only_target_lane_vehicles_count() {
+    // A second ramp vehicle right behind does not close the gate; the same car in the lane does.
+    let ego = car(179.9, 0.0, true);
+    assert!(entry_is_safe(
+        &scene(vec![ego, car(176.0, 10.0, true)]),
+        0,
+        &rules()
+    ));
+    assert!(!entry_is_safe(
+        &scene(vec![ego, car(176.0, 10.0, false)]),
+        0,
+        &rules()
+    ));
+    assert!(entry_is_safe(&scene(vec![ego]), 0, &rules()));
+}
+
+#[test]
+fn stop_bound_worked_case_stops_before_the_line() {
+    // b = 10 m/s^2, dt = 0.1 s: at 174.9 m and 10 m/s the vehicle is at 175.9 m after the step,
+    // 4 m before the stop line at 179.9 m; v' <= -1 + sqrt(1 + 2 * 10 * 4) = 8 m/s, so
+    // a <= (8 - 10) / 0.1 = -20 m/s^2.
+    let a = stop_bound(&174.9, &10.0, 180.0, 10.0, 0.1);
+    assert_abs_diff_eq!(a, -20.0, epsilon = 1e-9);
+    // Braking at 10 m/s^2 from there stays short of the line (step by step, as eq. 1 moves).
+    let (mut x, mut v) = (174.9 + 10.0 * 0.1, 10.0 + a * 0.1);
+    while v > 0.0 {
+        x += v * 0.1;
+        v = (v - 1.0).max(0.0);
+    }
+    assert!(x < 180.0 - STOP_MARGIN, "stopped at {x}");
+    // Already at the line after this step: the bound is a full stop, -v / dt.
+    assert_abs_diff_eq!(stop_bound(&179.9, &0.5, 180.0, 10.0, 0.1), -5.0, epsilon = 1e-9);
+}
