@@ -14,7 +14,7 @@ use tch::{Kind, Tensor};
 /// Runs both engines on the same scenes and checks returns and potentials agree; returns the
 /// number of collisions.
 fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, terminate: bool) -> usize {
-    let scenes = sample_scenes(&config, 17, 0, 24);
+    let scenes = sample_scenes(config, 17, 0, 24);
     let steps = 150;
     let opts = RolloutOptions {
         feasibility,
@@ -23,7 +23,7 @@ fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, term
         threads: 2,
         ..RolloutOptions::from_config(config)
     };
-    let scalar = rollout(&config, &opts, &scenes, || DriverActor::new(config, ego, others));
+    let scalar = rollout(config, &opts, &scenes, || DriverActor::new(config, ego, others));
     let mask = |d: Driver| if d == Driver::Idm { 1.0 } else { 0.0 };
     let mut weights = vec![mask(others); 9];
     weights[0] = mask(ego);

@@ -93,7 +93,8 @@ pub fn entry_is_safe(scene: &Scene, i: usize, rules: &GateRules) -> bool {
 /// speeds (every target-lane vehicle keeping its speed until then).
 fn safe_at(scene: &Scene, me: &Vehicle, t: f64, rules: &GateRules) -> bool {
     let x_e = me.x + me.v * t;
-    let (mut leader, mut follower): (Option<(f64, f64)>, Option<(f64, f64)>) = (None, None);
+    let mut leader: Option<(f64, f64)> = None;
+    let mut follower: Option<(f64, f64)> = None;
     for v in scene.vehicles.iter().filter(|v| !v.on_ramp) {
         let x = v.x + v.v * t;
         if x > x_e {
