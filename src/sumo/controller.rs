@@ -126,6 +126,19 @@ struct Car {
     ramp_lane: Option<String>,
 }
 
+impl Car {
+    /// The car as the internal simulator's state (ramp one lane width to the right).
+    fn vehicle(&self, lane_width: f64) -> Vehicle {
+        Vehicle {
+            x: self.x,
+            y: if self.on_ramp { -lane_width } else { 0.0 },
+            v: self.v,
+            phi: 0.0,
+            on_ramp: self.on_ramp,
+        }
+    }
+}
+
 /// What happened to one ego.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct EgoRecord {
@@ -496,13 +509,7 @@ impl Controller {
                 vehicles: game
                     .members
                     .iter()
-                    .map(|&(j, _)| Vehicle {
-                        x: cars[j].x,
-                        y: if cars[j].on_ramp { -lane_width } else { 0.0 },
-                        v: cars[j].v,
-                        phi: 0.0,
-                        on_ramp: cars[j].on_ramp,
-                    })
+                    .map(|&(j, _)| cars[j].vehicle(lane_width))
                     .collect(),
             };
             let mut nb = Vec::new();
@@ -535,11 +542,20 @@ impl Controller {
             .zip(raw)
             .map(|(&(gi, m, j), a)| {
                 let nb: &Neighbors = &neighbors[gi][m];
+                // A waiting ego outlives its players (fixed at pick-up): the merge gate looks at
+                // the target lane as it is now, so a car that arrived later is not invisible.
+                let lane_now;
+                let (scene, i) = if m == 0 && cars[j].on_ramp {
+                    lane_now = ego_and_target_lane(cars, j, lane_width);
+                    (&lane_now, 0)
+                } else {
+                    (&scenes[gi], m)
+                };
                 let a = applied_action(
                     &self.config,
                     self.config.sim.feasibility,
-                    &scenes[gi],
-                    m,
+                    scene,
+                    i,
                     nb,
                     f64::from(a),
                 );
@@ -564,8 +580,57 @@ impl Controller {
     }
 }
 
+/// Ramp vehicle `j` (first) and every target-lane vehicle, as the merge gate sees them.
+fn ego_and_target_lane(cars: &[Car], j: usize, lane_width: f64) -> Scene {
+    Scene {
+        vehicles: std::iter::once(&cars[j])
+            .chain(cars.iter().filter(|c| !c.on_ramp))
+            .map(|c| c.vehicle(lane_width))
+            .collect(),
+    }
+}
+
 /// One ego's game: `(index into cars, player slot)`, the ego first with slot 0.
 #[derive(Debug, Clone)]
 struct Game {
     members: Vec<(usize, usize)>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::merge_gate::{GateRules, entry_is_safe};
+
+    fn car(id: &str, x: f64, v: f64, on_ramp: bool) -> Car {
+        Car {
+            id: id.to_owned(),
+            x,
+            v,
+            accel: 0.0,
+            on_ramp,
+            ramp_lane: on_ramp.then(|| "merge_0".to_owned()),
+        }
+    }
+
+    #[test]
+    fn the_gate_sees_target_lane_cars_that_are_not_players() {
+        // A stopped ego past its players: the car closing in at 10 m/s 9 m behind it arrived
+        // after pick-up, so it is in no game, but the gate must see it (and not the ramp car).
+        let cars = [
+            car("ramp.1", 179.9, 0.0, true),
+            car("ramp.2", 170.0, 0.0, true),
+            car("lane.9", 171.0, 10.0, false),
+        ];
+        let scene = ego_and_target_lane(&cars, 0, 3.66);
+        let xs: Vec<(f64, bool)> = scene.vehicles.iter().map(|v| (v.x, v.on_ramp)).collect();
+        assert_eq!(xs, vec![(179.9, true), (171.0, false)]);
+        let rules = GateRules {
+            conflict_point: 180.0,
+            clearance: 7.0,
+            b_safe: 4.0,
+            horizon: 3.0,
+            dt: 0.1,
+        };
+        assert!(!entry_is_safe(&scene, 0, &rules));
+    }
 }
