@@ -166,8 +166,7 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
 }
 
 fn sample_net() -> PolicyNet {
-    tch::manual_seed(0);
-    PolicyNet::new(NetSpec::new(9, 8, 9.81))
+    PolicyNet::seeded(NetSpec::new(9, 8, 9.81), 0)
 }
 
 fn sidecar_for(net: &PolicyNet) -> file::Sidecar {

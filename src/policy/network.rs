@@ -53,8 +53,8 @@ pub struct PolicyNet {
 }
 
 impl PolicyNet {
-    /// A freshly initialised network (libtorch's default initialisation, seeded by
-    /// `tch::manual_seed` by the caller).
+    /// A freshly initialised network (libtorch's default initialisation from its global
+    /// generator; [`PolicyNet::seeded`] for a reproducible one).
     pub fn new(spec: NetSpec) -> Self {
         let vs = nn::VarStore::new(Device::Cpu);
         let root = vs.root();
@@ -71,6 +71,18 @@ impl PolicyNet {
             layers,
             scale,
         }
+    }
+
+    /// A network initialised from `seed`. libtorch's generator is process-wide: seeding and
+    /// initialising happen under one lock, so threads creating networks at the same time (tests
+    /// run in parallel, say) cannot interleave and change each other's weights.
+    pub fn seeded(spec: NetSpec, seed: i64) -> Self {
+        static GENERATOR: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        let _guard = GENERATOR
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        tch::manual_seed(seed);
+        PolicyNet::new(spec)
     }
 
     /// Actions `[..]` for observations `[.., obs_dim]` (raw SI values; normalised here).

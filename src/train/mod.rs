@@ -294,12 +294,8 @@ fn screen_inits(config: &Config, run: &TrainRun, probe: &[Scene]) -> Result<Init
     let t = &config.train;
     let mut probe_objectives = Vec::with_capacity(t.init_candidates);
     for c in 0..t.init_candidates {
-        tch::manual_seed(init_seed(run.seed, c));
-        let net = PolicyNet::new(NetSpec::new(
-            config.n_agents(),
-            t.hidden,
-            config.vehicle.max_accel,
-        ));
+        let spec = NetSpec::new(config.n_agents(), t.hidden, config.vehicle.max_accel);
+        let net = PolicyNet::seeded(spec, init_seed(run.seed, c));
         let mut opt = tch::nn::Adam::default().build(&net.vs, t.learning_rate)?;
         for epoch in 0..t.screen_epochs {
             gradient_step(config, run, &net, &mut opt, epoch)?;
@@ -341,9 +337,11 @@ pub fn train(
 ) -> Result<Vec<EpochRecord>, TrainError> {
     let t = &config.train;
     tch::set_num_threads(t.threads as i32);
-    tch::manual_seed(run.seed as i64);
     let n = config.n_agents();
-    let mut net = PolicyNet::new(NetSpec::new(n, t.hidden, config.vehicle.max_accel));
+    let mut net = PolicyNet::seeded(
+        NetSpec::new(n, t.hidden, config.vehicle.max_accel),
+        run.seed as i64,
+    );
     let mut records: Vec<EpochRecord> = Vec::new();
     if let Some(dir) = run.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|source| TrainError::Io {
@@ -379,8 +377,10 @@ pub fn train(
     );
     if records.is_empty() && t.init_candidates > 1 {
         let result = screen_inits(config, run, &probe)?;
-        tch::manual_seed(init_seed(run.seed, result.chosen));
-        net = PolicyNet::new(NetSpec::new(n, t.hidden, config.vehicle.max_accel));
+        net = PolicyNet::seeded(
+            NetSpec::new(n, t.hidden, config.vehicle.max_accel),
+            init_seed(run.seed, result.chosen),
+        );
         screening = Some(serde_json::json!(result));
     }
     let mut opt = tch::nn::Adam::default().build(&net.vs, t.learning_rate)?;
