@@ -52,10 +52,33 @@ pub struct PolicyNet {
     scale: Tensor,
 }
 
+/// The lock over libtorch's process-wide generator while a network is initialised.
+fn generator_lock() -> std::sync::MutexGuard<'static, ()> {
+    static GENERATOR: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    GENERATOR
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
 impl PolicyNet {
     /// A freshly initialised network (libtorch's default initialisation from its global
     /// generator; [`PolicyNet::seeded`] for a reproducible one).
     pub fn new(spec: NetSpec) -> Self {
+        let _guard = generator_lock();
+        PolicyNet::build(spec)
+    }
+
+    /// A network initialised from `seed`. libtorch's generator is process-wide: seeding and
+    /// initialising happen under one lock (which every construction takes), so threads creating
+    /// networks at the same time (tests run in parallel, say) cannot interleave and change each
+    /// other's weights.
+    pub fn seeded(spec: NetSpec, seed: i64) -> Self {
+        let _guard = generator_lock();
+        tch::manual_seed(seed);
+        PolicyNet::build(spec)
+    }
+
+    fn build(spec: NetSpec) -> Self {
         let vs = nn::VarStore::new(Device::Cpu);
         let root = vs.root();
         let (d, h) = (spec.obs_dim as i64, spec.hidden as i64);
@@ -71,18 +94,6 @@ impl PolicyNet {
             layers,
             scale,
         }
-    }
-
-    /// A network initialised from `seed`. libtorch's generator is process-wide: seeding and
-    /// initialising happen under one lock, so threads creating networks at the same time (tests
-    /// run in parallel, say) cannot interleave and change each other's weights.
-    pub fn seeded(spec: NetSpec, seed: i64) -> Self {
-        static GENERATOR: std::sync::Mutex<()> = std::sync::Mutex::new(());
-        let _guard = GENERATOR
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        tch::manual_seed(seed);
-        PolicyNet::new(spec)
     }
 
     /// Actions `[..]` for observations `[.., obs_dim]` (raw SI values; normalised here).
