@@ -6,13 +6,15 @@ use approx::assert_abs_diff_eq;
 use common::{car, scene};
 use mpgdrive::sim::merge_gate::{GateRules, STOP_MARGIN, entry_is_safe, gate_holds, stop_bound};
 
-/// x_c = 180 m, 5 m cars with a 2 m safety gap, b_safe = 4 m/s^2, tau_s = 3 s, dt = 0.1 s.
+/// x_c = 180 m, 5 m cars with a 2 m safety gap, b_safe = 4 m/s^2, tau_s = 3 s, braking at up
+/// to g = 9.81 m/s^2, dt = 0.1 s.
 fn rules() -> GateRules {
     GateRules {
         conflict_point: 180.0,
         clearance: 7.0,
         b_safe: 4.0,
         horizon: 3.0,
+        brake: 9.81,
         dt: 0.1,
     }
 }
@@ -71,17 +73,15 @@ fn a_committed_ego_is_not_held() {
     // stop (after the step: 170.85 m, 9.05 m before the line, v' <= 12.4 m/s), so the gate
     // holds it; at 177.2 m (1.85 m before the line after the step, v' <= 5.1 m/s, a <= -34
     // m/s^2 < -g) it cannot, and the gate lets it go.
-    let g = 9.81;
     let held = scene(vec![car(170.0, 8.5, true), car(170.0, 12.0, false)]);
-    assert!(!entry_is_safe(&held, 0, &rules()) && gate_holds(&held, 0, &rules(), g));
+    assert!(!entry_is_safe(&held, 0, &rules()) && gate_holds(&held, 0, &rules()));
     let committed = scene(vec![car(177.2, 8.5, true), car(177.2, 12.0, false)]);
-    assert!(!entry_is_safe(&committed, 0, &rules()) && !gate_holds(&committed, 0, &rules(), g));
+    assert!(!entry_is_safe(&committed, 0, &rules()) && !gate_holds(&committed, 0, &rules()));
     // A target-lane vehicle is never held.
     assert!(!gate_holds(
         &scene(vec![car(170.0, 8.5, false), car(170.0, 12.0, false)]),
         0,
-        &rules(),
-        g
+        &rules()
     ));
 }
 
@@ -137,7 +137,11 @@ fn stop_bound_worked_case_stops_before_the_line() {
     // b = 10 m/s^2, dt = 0.1 s: at 174.9 m and 10 m/s the vehicle is at 175.9 m after the step,
     // 4 m before the stop line at 179.9 m; v' <= -1 + sqrt(1 + 2 * 10 * 4) = 8 m/s, so
     // a <= (8 - 10) / 0.1 = -20 m/s^2.
-    let a = stop_bound(&174.9, &10.0, 180.0, 10.0, 0.1);
+    let ten = GateRules {
+        brake: 10.0,
+        ..rules()
+    };
+    let a = stop_bound(&174.9, &10.0, &ten);
     assert_abs_diff_eq!(a, -20.0, epsilon = 1e-9);
     // Braking at 10 m/s^2 from there stays short of the line (step by step, as eq. 1 moves).
     let (mut x, mut v) = (174.9 + 10.0 * 0.1, 10.0 + a * 0.1);
@@ -147,5 +151,5 @@ fn stop_bound_worked_case_stops_before_the_line() {
     }
     assert!(x < 180.0 - STOP_MARGIN, "stopped at {x}");
     // Already at the line after this step: the bound is a full stop, -v / dt.
-    assert_abs_diff_eq!(stop_bound(&179.9, &0.5, 180.0, 10.0, 0.1), -5.0, epsilon = 1e-9);
+    assert_abs_diff_eq!(stop_bound(&179.9, &0.5, &ten), -5.0, epsilon = 1e-9);
 }

@@ -47,6 +47,8 @@ pub struct GateRules {
     pub b_safe: f64,
     /// Upper end of the entry-time prediction (s): `tau_s`.
     pub horizon: f64,
+    /// Hardest braking the stopping bound may use (m/s^2): the action bound `g`.
+    pub brake: f64,
     /// Time step (s).
     pub dt: f64,
 }
@@ -59,20 +61,19 @@ impl GateRules {
             clearance: config.vehicle.length + config.sim.safety_gap,
             b_safe: config.sim.b_safe,
             horizon: config.sim.tau_s,
+            brake: config.vehicle.max_accel,
             dt: config.sim.dt,
         }
     }
 }
 
 /// Whether the gate holds ramp vehicle `i` of `scene`: it is on the ramp, entering is not
-/// safe, and it can still stop before the line braking at up to `brake` (past that point it is
-/// committed and goes on as its driver says: braking would only bring it in slower, in front of
-/// the same follower).
-pub fn gate_holds(scene: &Scene, i: usize, rules: &GateRules, brake: f64) -> bool {
+/// safe, and it can still stop before the line braking at up to `rules.brake` (past that point
+/// it is committed and goes on as its driver says: braking would only bring it in slower, in
+/// front of the same follower).
+pub fn gate_holds(scene: &Scene, i: usize, rules: &GateRules) -> bool {
     let me = &scene.vehicles[i];
-    me.on_ramp
-        && stop_bound(&me.x, &me.v, rules.conflict_point, brake, rules.dt) >= -brake
-        && !entry_is_safe(scene, i, rules)
+    me.on_ramp && stop_bound(&me.x, &me.v, rules) >= -rules.brake && !entry_is_safe(scene, i, rules)
 }
 
 /// Whether a gap of `gap` (m) absorbs a closing speed `closing` (m/s) braking at `b` (m/s^2).
@@ -111,13 +112,14 @@ fn safe_at(scene: &Scene, me: &Vehicle, t: f64, rules: &GateRules) -> bool {
 }
 
 /// The largest action that leaves a vehicle at `(x, v)` able to stop [`STOP_MARGIN`] before
-/// `x_c` braking at `brake` (module docs). Past that line after this step nothing can stop the
-/// entry and the bound is `(0 - v) / dt`, full braking.
-pub fn stop_bound<T: Num>(x: &T, v: &T, conflict_point: f64, brake: f64, dt: f64) -> T {
+/// `x_c` braking at `rules.brake` (module docs). Past that line after this step nothing can
+/// stop the entry and the bound is `(0 - v) / dt`, full braking.
+pub fn stop_bound<T: Num>(x: &T, v: &T, rules: &GateRules) -> T {
+    let (brake, dt) = (rules.brake, rules.dt);
     let room = x
         .add(&v.mul_c(dt))
         .neg()
-        .add_c(conflict_point - STOP_MARGIN)
+        .add_c(rules.conflict_point - STOP_MARGIN)
         .max(&x.full(0.0));
     let v_next = room
         .mul_c(2.0 * brake)

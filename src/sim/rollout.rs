@@ -458,8 +458,8 @@ pub fn applied_action(
         a = project_feasible(&a, &lo, &hi);
     }
     let rules = GateRules::new(config);
-    if feasibility && config.sim.merge_gate && gate_holds(scene, i, &rules, veh.max_accel) {
-        a = a.min(stop_bound(&me.x, &me.v, rules.conflict_point, veh.max_accel, dt));
+    if feasibility && config.sim.merge_gate && gate_holds(scene, i, &rules) {
+        a = a.min(stop_bound(&me.x, &me.v, &rules));
     }
     clip_action(&a, &me.v, veh.max_accel, veh.v_min, veh.v_max, dt)
 }

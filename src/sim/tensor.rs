@@ -200,20 +200,12 @@ fn merge_gate(config: &Config, batch: &TensorBatch, a: &Tensor) -> Tensor {
     let closed: Vec<f64> = batch
         .to_scenes()
         .iter()
-        .flat_map(|s| {
-            (0..s.len()).map(move |i| f64::from(u8::from(gate_holds(s, i, &rules, config.vehicle.max_accel))))
-        })
+        .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(gate_holds(s, i, &rules)))))
         .collect();
     let closed = Tensor::from_slice(&closed)
         .reshape(batch.x.size())
         .to_kind(batch.x.kind());
-    let bound = stop_bound(
-        &batch.x,
-        &batch.v,
-        rules.conflict_point,
-        config.vehicle.max_accel,
-        rules.dt,
-    );
+    let bound = stop_bound(&batch.x, &batch.v, &rules);
     <Tensor as Num>::select(&closed, &Num::min(a, &bound), a)
 }
 

@@ -629,6 +629,7 @@ mod tests {
             clearance: 7.0,
             b_safe: 4.0,
             horizon: 3.0,
+            brake: 9.81,
             dt: 0.1,
         };
         assert!(!entry_is_safe(&scene, 0, &rules));
