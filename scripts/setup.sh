@@ -5,8 +5,8 @@
 #
 #   eval "$(scripts/setup.sh)"
 #
-# - Debian packages sumo, sumo-tools, libclang-dev (apt-get, as root; otherwise the exact
-#   command is printed and the script fails).
+# - Debian packages sumo, sumo-tools, libclang-dev, and xvfb and xauth for the sumo-gui test
+#   (apt-get, as root; otherwise the exact command is printed and the script fails).
 # - libtorch 2.13.0: $LIBTORCH when it points at one; otherwise a CPU libtorch taken from the
 #   PyPI torch wheel, installed once into a per-user cache shared by all clones
 #   (${XDG_CACHE_HOME:-$HOME/.cache}/mpgdrive/libtorch-2.13.0), never into the repository.
@@ -27,6 +27,9 @@ missing=()
 command -v sumo >/dev/null 2>&1 && [ -f /usr/include/libsumo/Simulation.h ] || missing+=(sumo)
 [ -d /usr/share/sumo/tools ] || missing+=(sumo-tools)
 dpkg-query -W -f='${Status}' libclang-dev 2>/dev/null | grep -q "ok installed" || missing+=(libclang-dev)
+# The tests run `cosim --gui` on a virtual display.
+command -v xvfb-run >/dev/null 2>&1 || missing+=(xvfb)
+command -v xauth >/dev/null 2>&1 || missing+=(xauth)
 if [ ${#missing[@]} -gt 0 ]; then
   if [ "$(id -u)" -ne 0 ]; then
     die "missing system packages: ${missing[*]}. Run: sudo apt-get update && sudo apt-get install -y ${missing[*]}"

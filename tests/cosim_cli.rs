@@ -230,3 +230,46 @@ fn two_clients_share_one_sumo_and_the_first_detach_leaves_it_running() {
         );
     }
 }
+
+/// Egos of a `cosim --json` run, without the timings (they differ from run to run).
+fn egos_of(out: &Output) -> serde_json::Value {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let runs: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is the JSON alone");
+    runs[0]["egos"].clone()
+}
+
+#[test]
+fn the_gui_run_drives_sumo_gui_exactly_as_the_headless_run() {
+    // sumo-gui on a virtual display (xvfb, installed by scripts/setup.sh), through libtraci,
+    // and without SUMO_HOME, where sumo-gui 1.15 alone refuses the route file offline.
+    let dir = temp_dir("gui");
+    let run = |gui: bool| {
+        let mut cmd = if gui {
+            let mut c = Command::new("xvfb-run");
+            c.args(["-a", env!("CARGO_BIN_EXE_mpgdrive")])
+                .current_dir(env!("CARGO_MANIFEST_DIR"));
+            c
+        } else {
+            bin()
+        };
+        cmd.args([
+            "cosim",
+            "--sumocfg",
+            CFG,
+            "--controllers",
+            "mpg",
+            "--end",
+            "40",
+            "--json",
+        ])
+        .args(if gui { &["--gui"][..] } else { &[] })
+        .arg("--out")
+        .arg(dir.join(if gui { "gui" } else { "headless" }))
+        .env_remove("SUMO_HOME")
+        .output()
+        .unwrap()
+    };
+    let headless = egos_of(&run(false));
+    assert!(!headless.as_array().unwrap().is_empty(), "{headless}");
+    assert_eq!(egos_of(&run(true)), headless);
+}

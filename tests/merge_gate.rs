@@ -20,19 +20,19 @@ fn rules() -> GateRules {
 }
 
 #[test]
-fn a_stopped_ego_waits_for_a_follower_that_could_not_brake_in_time() {
-    // Ego stopped at 179.9 m: at its current speed it never reaches x_c, so every step from
-    // 0.2 s to tau_s = 3 s is a possible entry. A follower at 10 m/s needs a gap of
-    // 10^2 / (2 * 4) = 12.5 m beyond the 7 m clearance, so its centre must stay at or behind
-    // 179.9 - 19.5 = 160.4 m until 3 s: it may start at up to 130.4 m.
+fn a_stopped_ego_at_the_line_needs_the_gap_of_one_entry() {
+    // Ego stopped at 179.9 m, on its stop line: the fastest speed from which it could still
+    // stop is 0, so committing now means crossing within 2 dt = 0.2 s, the only entry checked.
+    // A follower at 10 m/s needs a gap of 10^2 / (2 * 4) = 12.5 m beyond the 7 m clearance:
+    // its centre at 0.2 s at or behind 179.9 - 19.5 = 160.4 m, so it may start at up to 158.4 m.
     let ego = car(179.9, 0.0, true);
     assert!(entry_is_safe(
-        &scene(vec![ego, car(130.3, 10.0, false)]),
+        &scene(vec![ego, car(158.3, 10.0, false)]),
         0,
         &rules()
     ));
     assert!(!entry_is_safe(
-        &scene(vec![ego, car(130.5, 10.0, false)]),
+        &scene(vec![ego, car(158.5, 10.0, false)]),
         0,
         &rules()
     ));
@@ -50,18 +50,36 @@ fn a_stopped_ego_waits_for_a_follower_that_could_not_brake_in_time() {
 }
 
 #[test]
-fn entries_are_checked_until_the_ego_would_reach_x_c_at_its_speed() {
-    // Ego at 176 m and 8 m/s: it reaches x_c in 0.5 s, so entries at 0.2 to 0.5 s count. Behind
-    // a stopped leader it needs 7 + 8^2 / (2 * 4) = 15 m at entry; the last check (0.5 s, ego
-    // at 180 m) asks for the leader beyond 195 m.
-    let ego = car(176.0, 8.0, true);
+fn entries_are_checked_until_the_latest_crossing_of_a_vehicle_that_commits_now() {
+    // Ego stopped at 170 m, 9.9 m before its stop line: it could reach
+    // v' = -0.981 + sqrt(0.981^2 + 2 * 9.81 * 9.9) = 12.99 m/s and still stop; committing
+    // above that and braking at g, it crosses by 0.2 + 12.99 / 9.81 = 1.52 s, so entries up to
+    // the 16th step (1.6 s) count. The 10 m/s follower's centre must stay at or behind
+    // 170 - 19.5 = 150.5 m until 1.6 s: it may start at up to 134.5 m.
+    let waiting = car(170.0, 0.0, true);
     assert!(entry_is_safe(
-        &scene(vec![ego, car(195.1, 0.0, false)]),
+        &scene(vec![waiting, car(134.4, 10.0, false)]),
         0,
         &rules()
     ));
     assert!(!entry_is_safe(
-        &scene(vec![ego, car(194.9, 0.0, false)]),
+        &scene(vec![waiting, car(134.6, 10.0, false)]),
+        0,
+        &rules()
+    ));
+    // Ego at 176 m and 8 m/s: after the step it is at 176.8 m, 3.1 m before the stop line, and
+    // could stop from v' = -0.981 + sqrt(0.981^2 + 2 * 9.81 * 3.1) = 6.88 m/s; the latest
+    // crossing is 0.2 + 6.88 / 9.81 = 0.90 s, so entries up to the 10th step (1.0 s, ego at
+    // 184 m at its speed) count. Behind a stopped leader it needs 7 + 8^2 / (2 * 4) = 15 m:
+    // the leader beyond 199 m.
+    let ego = car(176.0, 8.0, true);
+    assert!(entry_is_safe(
+        &scene(vec![ego, car(199.1, 0.0, false)]),
+        0,
+        &rules()
+    ));
+    assert!(!entry_is_safe(
+        &scene(vec![ego, car(198.9, 0.0, false)]),
         0,
         &rules()
     ));

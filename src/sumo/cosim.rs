@@ -185,6 +185,12 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
             "--quit-on-end".into(),
             "true".into(),
         ]);
+        // Without SUMO_HOME, sumo-gui 1.15 looks the schemas up on the web, fails offline and
+        // quits ("invalid document structure") before the first TraCI call; libsumo loads the
+        // same files without SUMO_HOME, and so does the GUI run without validation.
+        if std::env::var_os("SUMO_HOME").is_none() {
+            args.extend(["--xml-validation", "never", "--xml-validation.routes", "never"].map(String::from));
+        }
     }
     args
 }

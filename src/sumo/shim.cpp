@@ -9,6 +9,7 @@ namespace api = libtraci;
 namespace api = libsumo;
 #endif
 
+#include <iostream>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,19 @@ int guarded(F&& body) {
     return -1;
 }
 
+// libtraci reports its connection retries on std::cout; while it connects, they go to
+// std::cerr instead, so that a caller's stdout (`cosim --json`) holds only its own output.
+class CoutToCerr {
+public:
+    CoutToCerr() : saved_(std::cout.rdbuf(std::cerr.rdbuf())) {}
+    ~CoutToCerr() { std::cout.rdbuf(saved_); }
+    CoutToCerr(const CoutToCerr&) = delete;
+    CoutToCerr& operator=(const CoutToCerr&) = delete;
+
+private:
+    std::streambuf* saved_;
+};
+
 void put_string(const std::string& s, const char** buf, size_t* len) {
     g_strings = s;
     *buf = g_strings.data();
@@ -62,6 +76,7 @@ const char* MPG_FN(last_error)(void) { return g_error.c_str(); }
 int MPG_FN(start)(const char* const* argv, size_t argc) {
     return guarded([&] {
         std::vector<std::string> cmd(argv, argv + argc);
+        CoutToCerr quiet;
         api::Simulation::start(cmd);
     });
 }
@@ -69,6 +84,7 @@ int MPG_FN(start)(const char* const* argv, size_t argc) {
 int MPG_FN(attach)(int port, int order) {
     return guarded([&] {
 #ifdef LIBTRACI
+        CoutToCerr quiet;
         api::Simulation::init(port);
         api::Simulation::setOrder(order);
 #else
