@@ -5,6 +5,7 @@ mod common;
 use approx::assert_abs_diff_eq;
 use common::{car, scene};
 use mpgdrive::sim::merge_gate::{GateRules, STOP_MARGIN, entry_is_safe, gate_holds, stop_bound};
+use mpgdrive::sim::state::Vehicle;
 
 /// x_c = 180 m, 5 m cars with a 2 m safety gap, b_safe = 4 m/s^2, tau_s = 3 s, braking at up
 /// to g = 9.81 m/s^2, dt = 0.1 s.
@@ -19,6 +20,11 @@ fn rules() -> GateRules {
     }
 }
 
+/// Whether `ego` may enter with `other` as the only other vehicle.
+fn safe_beside(ego: Vehicle, other: Vehicle) -> bool {
+    entry_is_safe(&scene(vec![ego, other]), 0, &rules())
+}
+
 #[test]
 fn a_stopped_ego_at_the_line_needs_the_gap_of_one_entry() {
     // Ego stopped at 179.9 m, on its stop line: the fastest speed from which it could still
@@ -26,27 +32,11 @@ fn a_stopped_ego_at_the_line_needs_the_gap_of_one_entry() {
     // A follower at 10 m/s needs a gap of 10^2 / (2 * 4) = 12.5 m beyond the 7 m clearance:
     // its centre at 0.2 s at or behind 179.9 - 19.5 = 160.4 m, so it may start at up to 158.4 m.
     let ego = car(179.9, 0.0, true);
-    assert!(entry_is_safe(
-        &scene(vec![ego, car(158.3, 10.0, false)]),
-        0,
-        &rules()
-    ));
-    assert!(!entry_is_safe(
-        &scene(vec![ego, car(158.5, 10.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(safe_beside(ego, car(158.3, 10.0, false)));
+    assert!(!safe_beside(ego, car(158.5, 10.0, false)));
     // A follower no faster than the ego asks for no braking: only the clearance counts.
-    assert!(entry_is_safe(
-        &scene(vec![ego, car(172.8, 0.0, false)]),
-        0,
-        &rules()
-    ));
-    assert!(!entry_is_safe(
-        &scene(vec![ego, car(173.0, 0.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(safe_beside(ego, car(172.8, 0.0, false)));
+    assert!(!safe_beside(ego, car(173.0, 0.0, false)));
 }
 
 #[test]
@@ -57,32 +47,16 @@ fn entries_are_checked_until_the_latest_crossing_of_a_vehicle_that_commits_now()
     // the 16th step (1.6 s) count. The 10 m/s follower's centre must stay at or behind
     // 170 - 19.5 = 150.5 m until 1.6 s: it may start at up to 134.5 m.
     let waiting = car(170.0, 0.0, true);
-    assert!(entry_is_safe(
-        &scene(vec![waiting, car(134.4, 10.0, false)]),
-        0,
-        &rules()
-    ));
-    assert!(!entry_is_safe(
-        &scene(vec![waiting, car(134.6, 10.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(safe_beside(waiting, car(134.4, 10.0, false)));
+    assert!(!safe_beside(waiting, car(134.6, 10.0, false)));
     // Ego at 176 m and 8 m/s: after the step it is at 176.8 m, 3.1 m before the stop line, and
     // could stop from v' = -0.981 + sqrt(0.981^2 + 2 * 9.81 * 3.1) = 6.88 m/s; the latest
     // crossing is 0.2 + 6.88 / 9.81 = 0.90 s, so entries up to the 10th step (1.0 s, ego at
     // 184 m at its speed) count. Behind a stopped leader it needs 7 + 8^2 / (2 * 4) = 15 m:
     // the leader beyond 199 m.
     let ego = car(176.0, 8.0, true);
-    assert!(entry_is_safe(
-        &scene(vec![ego, car(199.1, 0.0, false)]),
-        0,
-        &rules()
-    ));
-    assert!(!entry_is_safe(
-        &scene(vec![ego, car(198.9, 0.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(safe_beside(ego, car(199.1, 0.0, false)));
+    assert!(!safe_beside(ego, car(198.9, 0.0, false)));
 }
 
 #[test]
@@ -107,46 +81,22 @@ fn a_committed_ego_is_not_held() {
 fn the_leader_at_entry_needs_the_clearance_and_an_absorbable_closing_speed() {
     let ego = car(179.9, 0.0, true);
     // Pulling away: 8.1 m apart at 0.2 s, more than the 7 m clearance, and growing.
-    assert!(entry_is_safe(
-        &scene(vec![ego, car(186.0, 10.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(safe_beside(ego, car(186.0, 10.0, false)));
     // Stopped 6.9 m ahead (centre to centre): inside the 7 m clearance.
-    assert!(!entry_is_safe(
-        &scene(vec![ego, car(186.8, 0.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(!safe_beside(ego, car(186.8, 0.0, false)));
     // An ego at 10 m/s (entry at 0.2 s, x_e = 181.9) behind a stopped car 20 m ahead of that:
     // a 13 m gap absorbs the 12.5 m that stopping from 10 m/s at 4 m/s^2 takes; 12.4 m does not.
     let fast = car(179.9, 10.0, true);
-    assert!(entry_is_safe(
-        &scene(vec![fast, car(201.9, 0.0, false)]),
-        0,
-        &rules()
-    ));
-    assert!(!entry_is_safe(
-        &scene(vec![fast, car(201.3, 0.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(safe_beside(fast, car(201.9, 0.0, false)));
+    assert!(!safe_beside(fast, car(201.3, 0.0, false)));
 }
 
 #[test]
 fn only_target_lane_vehicles_count() {
     // A second ramp vehicle right behind does not close the gate; the same car in the lane does.
     let ego = car(179.9, 0.0, true);
-    assert!(entry_is_safe(
-        &scene(vec![ego, car(176.0, 10.0, true)]),
-        0,
-        &rules()
-    ));
-    assert!(!entry_is_safe(
-        &scene(vec![ego, car(176.0, 10.0, false)]),
-        0,
-        &rules()
-    ));
+    assert!(safe_beside(ego, car(176.0, 10.0, true)));
+    assert!(!safe_beside(ego, car(176.0, 10.0, false)));
     assert!(entry_is_safe(&scene(vec![ego]), 0, &rules()));
 }
 
