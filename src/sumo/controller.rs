@@ -91,7 +91,7 @@ impl ControlModes {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ControllerKind {
-    /// The MARL (MPG) policy drives the ego and its players.
+    /// The MARL (MPG) policy drives the ego and the players `merge.toml`'s `players` names.
     Mpg,
     /// The single-agent policy drives the ego only.
     Sarl,
