@@ -14,9 +14,9 @@
 //! across) and at the latest when, having just passed the fastest speed `v_stop` from which it
 //! could still stop, it brakes at `g`: `2 dt + v_stop / g` (at most `tau_s`). A stopped
 //! vehicle at its stop line thus needs the gap of one entry, not a gap lasting `tau_s`
-//! (measured on `i80_merge`: with the gap lasting `tau_s` the waiting egos of the single-agent
-//! policy let 71 to 86 egos through in 900 s, with this window 183, as many as SUMO's own
-//! drivers). At each of these times, with every vehicle at its current speed, its
+//! (measured on `i80_merge` with the fourth training's single-agent policy: with the gap
+//! lasting `tau_s`, 71 to 86 egos merged in 900 s; with this window 183, as many as with
+//! SUMO's own drivers). At each of these times, with every vehicle at its current speed, its
 //! target-lane leader and follower at entry must both have a gap
 //! `|x_i - x_j| - clearance` above zero and a closing speed that braking at `b_safe` absorbs
 //! within that gap (MOBIL's safety criterion, Kesting, Treiber and Helbing 2007: the new

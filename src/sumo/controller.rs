@@ -521,7 +521,7 @@ impl Controller {
             if self.kind != ControllerKind::Sumo {
                 for (m, &(j, slot)) in game.members.iter().enumerate() {
                     let drive =
-                        m == 0 || (self.kind == ControllerKind::Mpg && self.may_drive_player(&cars[j].id));
+                        m == 0 || (self.kind == ControllerKind::Mpg && self.may_drive_player(&cars[j]));
                     if drive && claimed.insert(j) {
                         let start = obs.len();
                         obs.resize(start + dim, 0.0);
@@ -564,14 +564,20 @@ impl Controller {
             .collect()
     }
 
-    fn may_drive_player(&self, id: &str) -> bool {
-        match self.geometry.players {
-            PlayerControl::All => true,
-            PlayerControl::Controllable => self
-                .types
-                .get(id)
-                .is_some_and(|t| self.geometry.controllable_types.contains(t)),
-        }
+    /// Whether the MPG policy drives this player: one `merge.toml` names, inside the control
+    /// zone. A player `release_after` past the conflict point is SUMO's again, as a released
+    /// ego is, and stays in the ego's observation: the trained policy, driving leaders far
+    /// downstream of a waiting ego (never seen in training), stopped one on an open road.
+    fn may_drive_player(&self, car: &Car) -> bool {
+        let g = &self.geometry;
+        car.x < g.conflict_point + g.release_after
+            && match g.players {
+                PlayerControl::All => true,
+                PlayerControl::Controllable => self
+                    .types
+                    .get(&car.id)
+                    .is_some_and(|t| g.controllable_types.contains(t)),
+            }
     }
 
     /// The egos seen, in id order.
@@ -633,5 +639,31 @@ mod tests {
             dt: 0.1,
         };
         assert!(!entry_is_safe(&scene, 0, &rules));
+    }
+
+    #[test]
+    fn players_past_the_control_zone_and_human_players_are_left_to_sumo() {
+        let config =
+            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
+                .unwrap();
+        let geometry = MergeGeometry {
+            conflict_point: 180.0,
+            control_from: 60.0,
+            release_after: 50.0,
+            ramp_lanes: vec!["merge_0".into()],
+            target_lanes: vec!["merge_1".into()],
+            controllable_types: vec!["ctrl".into()],
+            players: PlayerControl::All,
+        };
+        let mut c = Controller::new(config, geometry, ControllerKind::Mpg, None, ControlModes::SAFE);
+        // The zone ends 50 m past x_c = 180 m, where a merged ego is released too.
+        assert!(c.may_drive_player(&car("lane.1", 229.9, 12.0, false)));
+        assert!(!c.may_drive_player(&car("lane.1", 230.0, 12.0, false)));
+        // "controllable": only players whose type is listed.
+        c.geometry.players = PlayerControl::Controllable;
+        c.types.insert("lane.1".into(), "human".into());
+        c.types.insert("ramp.1".into(), "ctrl".into());
+        assert!(!c.may_drive_player(&car("lane.1", 200.0, 12.0, false)));
+        assert!(c.may_drive_player(&car("ramp.1", 200.0, 12.0, false)));
     }
 }
