@@ -564,8 +564,8 @@ impl Controller {
             .collect()
     }
 
-    /// Whether the MPG policy drives this player: one `merge.toml` names, inside the control
-    /// zone. A player `release_after` past the conflict point is SUMO's again, as a released
+    /// Whether the MPG policy drives this player: one that `merge.toml`'s `players` names,
+    /// inside the control zone. A player `release_after` past the conflict point is SUMO's again, as a released
     /// ego is, and stays in the ego's observation: the trained policy, driving leaders far
     /// downstream of a waiting ego (never seen in training), stopped one on an open road.
     fn may_drive_player(&self, car: &Car) -> bool {
