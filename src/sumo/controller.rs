@@ -564,20 +564,25 @@ impl Controller {
             .collect()
     }
 
-    /// Whether the MPG policy drives this player: one that `merge.toml`'s `players` names,
-    /// inside the control zone. A player `release_after` past the conflict point is SUMO's again, as a released
-    /// ego is, and stays in the ego's observation: the trained policy, driving leaders far
-    /// downstream of a waiting ego (never seen in training), stopped one on an open road.
+    /// Whether the MPG policy drives this player. `"all"`: every player, wherever it is (the
+    /// paper's game, as the internal simulator plays it). `"controllable"`: a player of a
+    /// controllable type inside the control zone; past `release_after` beyond the conflict
+    /// point it is SUMO's again, as a released ego is, and stays in the ego's observation. On
+    /// `i80_merge`, merged egos became players of later egos, and the trained policy, driving
+    /// them as leaders far downstream of a waiting ego (never seen in training), stopped one
+    /// on an open road.
     fn may_drive_player(&self, car: &Car) -> bool {
         let g = &self.geometry;
-        car.x < g.conflict_point + g.release_after
-            && match g.players {
-                PlayerControl::All => true,
-                PlayerControl::Controllable => self
-                    .types
-                    .get(&car.id)
-                    .is_some_and(|t| g.controllable_types.contains(t)),
+        match g.players {
+            PlayerControl::All => true,
+            PlayerControl::Controllable => {
+                car.x < g.conflict_point + g.release_after
+                    && self
+                        .types
+                        .get(&car.id)
+                        .is_some_and(|t| g.controllable_types.contains(t))
             }
+        }
     }
 
     /// The egos seen, in id order.
@@ -642,7 +647,7 @@ mod tests {
     }
 
     #[test]
-    fn players_past_the_control_zone_and_human_players_are_left_to_sumo() {
+    fn controllable_players_are_driven_inside_the_control_zone_only() {
         let config =
             Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
                 .unwrap();
@@ -656,14 +661,15 @@ mod tests {
             players: PlayerControl::All,
         };
         let mut c = Controller::new(config, geometry, ControllerKind::Mpg, None, ControlModes::SAFE);
-        // The zone ends 50 m past x_c = 180 m, where a merged ego is released too.
-        assert!(c.may_drive_player(&car("lane.1", 229.9, 12.0, false)));
-        assert!(!c.may_drive_player(&car("lane.1", 230.0, 12.0, false)));
-        // "controllable": only players whose type is listed.
+        // "all": every player, also far downstream (the paper's game).
+        assert!(c.may_drive_player(&car("lane.1", 400.0, 12.0, false)));
+        // "controllable": only players whose type is listed, and only inside the control zone,
+        // which ends 50 m past x_c = 180 m, where a merged ego is released too.
         c.geometry.players = PlayerControl::Controllable;
         c.types.insert("lane.1".into(), "human".into());
         c.types.insert("ramp.1".into(), "ctrl".into());
         assert!(!c.may_drive_player(&car("lane.1", 200.0, 12.0, false)));
-        assert!(c.may_drive_player(&car("ramp.1", 200.0, 12.0, false)));
+        assert!(c.may_drive_player(&car("ramp.1", 229.9, 12.0, false)));
+        assert!(!c.may_drive_player(&car("ramp.1", 230.0, 12.0, false)));
     }
 }
