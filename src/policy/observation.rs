@@ -15,7 +15,11 @@
 //! | 9.. | agent index | one-hot over the `N` players |
 //!
 //! A missing neighbour reads as [`MISSING_DISTANCE`] away with zero relative speed, and its
-//! flag is 0. Values are raw SI numbers here; the policy network normalises them.
+//! flag is 0. A neighbour farther than that reads as that far (with its flag and relative
+//! speed): training's rollouts almost never go beyond it (704 of 6.75 million observations of
+//! the bundled MPG policies under NE players), and in SUMO traffic a waiting ego whose players
+//! had driven 200-500 m ahead was told by one trained policy to brake to a stop. Values are
+//! raw SI numbers here; the policy network normalises them.
 
 use crate::config::Config;
 use crate::num::Num;
@@ -28,7 +32,7 @@ use crate::sim::state::Scene;
 pub const OBS_LAYOUT_VERSION: u32 = 1;
 /// Number of features before the one-hot agent index.
 pub const N_FEATURES: usize = 9;
-/// Distance reported for a missing neighbour (m).
+/// Distance reported for a missing neighbour, and the largest reported for a present one (m).
 pub const MISSING_DISTANCE: f64 = 100.0;
 
 /// Observation width for `n_agents` players.
@@ -50,10 +54,10 @@ pub fn features<T: Num>(
     [
         x.mul_c(-1.0).add_c(x_c),
         v.mul_c(1.0),
-        T::select(&leader.present, &leader.x.sub(x), &missing),
+        T::select(&leader.present, &leader.x.sub(x).min(&missing), &missing),
         T::select(&leader.present, &leader.v.sub(v), &zero),
         leader.present.mul_c(1.0),
-        T::select(&follower.present, &x.sub(&follower.x), &missing),
+        T::select(&follower.present, &x.sub(&follower.x).min(&missing), &missing),
         T::select(&follower.present, &follower.v.sub(v), &zero),
         follower.present.mul_c(1.0),
         on_ramp.mul_c(1.0),
@@ -234,4 +238,47 @@ pub fn tensor_observations(
         .unsqueeze(0)
         .expand([size[0], size[1], size[1]], false);
     tch::Tensor::cat(&[tch::Tensor::stack(&f, 2), one_hot], 2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::neighbors::find_neighbors;
+    use crate::sim::state::Vehicle;
+
+    fn car(x: f64, v: f64, on_ramp: bool) -> Vehicle {
+        Vehicle {
+            x,
+            y: if on_ramp { -3.66 } else { 0.0 },
+            v,
+            phi: 0.0,
+            on_ramp,
+        }
+    }
+
+    #[test]
+    fn neighbours_beyond_the_missing_distance_read_as_that_far() {
+        // A stopped ramp ego at 179.9 m, its nearest player ahead 250 m away at 13 m/s and
+        // one 40 m behind at 12 m/s: the leader reads 100 m away, still present, with its
+        // relative speed.
+        let scene = Scene {
+            vehicles: vec![
+                car(179.9, 0.0, true),
+                car(429.9, 13.0, false),
+                car(139.9, 12.0, false),
+            ],
+        };
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&scene, &mut order, &mut nb);
+        let mut out = vec![0.0f32; obs_dim(3)];
+        observe(180.0, &scene, 0, &nb[0], &mut out);
+        let expected = [0.1, 0.0, 100.0, 13.0, 1.0, 40.0, 12.0, 1.0, 1.0, 1.0, 0.0, 0.0];
+        for (k, (o, e)) in out.iter().zip(expected).enumerate() {
+            assert!((f64::from(*o) - e).abs() < 1e-4, "feature {k}: {o} != {e}");
+        }
+        // The follower sees the ego 40 m ahead; the far leader sees the ego 250 m behind as
+        // 100 m, and no leader of its own.
+        observe(180.0, &scene, 1, &nb[1], &mut out);
+        assert_eq!(&out[2..8], &[100.0, 0.0, 0.0, 100.0, -13.0, 1.0]);
+    }
 }

@@ -472,15 +472,22 @@ impl Controller {
 
     /// The players of ego `k` now: up to `n_leaders` target-lane vehicles ahead (front-most
     /// first, in the slots that end at `n_leaders`) and up to `n_followers` behind (nearest
-    /// first, from slot `n_leaders + 1`).
+    /// first, from slot `n_leaders + 1`), among those within the reach of training's initial
+    /// states: `n_leaders` (or `n_followers`) times the largest sampled headway (120 m in the
+    /// paper's setting). Slots left empty read as a player that left. In sparse SUMO traffic
+    /// the fourth follower was up to 193 m back, and the trained ego slowed on the ramp to let
+    /// it pass.
     fn nearest_players(&self, cars: &[Car], k: usize) -> Vec<(String, usize)> {
+        let s = &self.config.scenario;
+        let headway = self.config.sampling.headway[1];
+        let ego_x = cars[k].x;
+        let (ahead, behind) = (s.n_leaders as f64 * headway, s.n_followers as f64 * headway);
         let target: Vec<(String, f64)> = cars
             .iter()
-            .filter(|o| !o.on_ramp)
+            .filter(|o| !o.on_ramp && o.x - ego_x <= ahead && ego_x - o.x <= behind)
             .map(|o| (o.id.clone(), o.x))
             .collect();
-        let s = &self.config.scenario;
-        player_slots(cars[k].x, &target, s.n_leaders, s.n_followers)
+        player_slots(ego_x, &target, s.n_leaders, s.n_followers)
     }
 
     /// Whether a vehicle's type is controllable (types are asked once per vehicle).
@@ -646,8 +653,8 @@ mod tests {
         assert!(!entry_is_safe(&scene, 0, &rules));
     }
 
-    #[test]
-    fn controllable_players_are_driven_inside_the_control_zone_only() {
+    /// An `mpg` controller with the paper's configuration on a one-lane merge at 180 m.
+    fn paper_controller() -> Controller {
         let config =
             Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
                 .unwrap();
@@ -660,7 +667,45 @@ mod tests {
             controllable_types: vec!["ctrl".into()],
             players: PlayerControl::All,
         };
-        let mut c = Controller::new(config, geometry, ControllerKind::Mpg, None, ControlModes::SAFE);
+        Controller::new(config, geometry, ControllerKind::Mpg, None, ControlModes::SAFE)
+    }
+
+    #[test]
+    fn players_are_picked_within_the_reach_of_training_initial_states() {
+        // Paper setting: 4 leaders and 4 followers, headways up to 30 m, so players are picked
+        // at most 120 m ahead of or behind the ego (at 100 m here).
+        let c = paper_controller();
+        let mut cars = vec![car("ego", 100.0, 10.0, true), car("ramp.2", 80.0, 10.0, true)];
+        for (id, x) in [
+            ("a230", 230.0),
+            ("a220", 220.0),
+            ("a150", 150.0),
+            ("a110", 110.0),
+            ("b90", 90.0),
+            ("b40", 40.0),
+            ("b-20", -20.0),
+            ("b-21", -21.0),
+        ] {
+            cars.push(car(id, x, 12.0, false));
+        }
+        let players = c.nearest_players(&cars, 0);
+        let expected: Vec<(String, usize)> = [
+            ("a220", 2),
+            ("a150", 3),
+            ("a110", 4),
+            ("b90", 5),
+            ("b40", 6),
+            ("b-20", 7),
+        ]
+        .iter()
+        .map(|&(id, slot)| (id.to_owned(), slot))
+        .collect();
+        assert_eq!(players, expected);
+    }
+
+    #[test]
+    fn controllable_players_are_driven_inside_the_control_zone_only() {
+        let mut c = paper_controller();
         // "all": every player, also far downstream (the paper's game).
         assert!(c.may_drive_player(&car("lane.1", 400.0, 12.0, false)));
         // "controllable": only players whose type is listed, and only inside the control zone,
