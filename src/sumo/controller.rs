@@ -1,7 +1,8 @@
 //! The co-simulation controller: once per SUMO step it reads the vehicles on the ramp and the
 //! target lane, keeps one game per ego (the ego and the 4 leading and 4 following target-lane
-//! vehicles nearest to it when it was picked up, in the player slots of training; a player
-//! that leaves the target lane drops out), builds Table I observations with the training
+//! vehicles nearest to it when it was picked up, within the reach of training's initial
+//! states, in the player slots of training; a player that leaves the target lane drops out),
+//! builds Table I observations with the training
 //! builder, runs the policy once for every controlled vehicle, applies the feasibility
 //! projection and limits of the internal simulator, and sets SUMO's speed (see Integration).
 //! Games are fixed as an internal episode's players are: re-forming them every step made the
