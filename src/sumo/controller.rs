@@ -2,9 +2,9 @@
 //! target lane, keeps one game per ego (the ego and the 4 leading and 4 following target-lane
 //! vehicles nearest to it when it was picked up, within the reach of training's initial
 //! states, in the player slots of training; a player that leaves the target lane drops out),
-//! builds Table I observations with the training
-//! builder, runs the policy once for every controlled vehicle, applies the feasibility
-//! projection and limits of the internal simulator, and sets SUMO's speed (see Integration).
+//! builds Table I observations with the training builder, runs the policy once for every
+//! controlled vehicle, applies the feasibility projection and limits of the internal
+//! simulator, and sets SUMO's speed (see Integration).
 //! Games are fixed as an internal episode's players are: re-forming them every step made the
 //! trained egos of `i80_merge` stop altogether (measured: 6 failures of 7 finished egos).
 //!
