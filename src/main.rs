@@ -11,7 +11,7 @@ use mpgdrive::game::mpg_check::{CheckSettings, check_mpg, evaluations};
 use mpgdrive::sim::Driver;
 use mpgdrive::sim::rollout::{DriverActor, RolloutOptions, rollout};
 use mpgdrive::sim::sampler::sample_scenes;
-use mpgdrive::train::{Mode, TrainError, TrainRun, train};
+use mpgdrive::train::{Mode, TrainError, TrainRun, train_all};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -298,44 +298,52 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let flag = stop.clone();
             ctrlc::set_handler(move || flag.store(true, std::sync::atomic::Ordering::SeqCst))
                 .context("installing the Ctrl-C handler")?;
-            for seed in seeds {
-                let run = TrainRun {
+            let runs: Vec<TrainRun> = seeds
+                .iter()
+                .map(|&seed| TrainRun {
                     mode,
                     seed,
                     out: out.join(format!("seed{seed}")),
                     resume,
                     command: command.clone(),
-                };
-                let bar = indicatif::ProgressBar::new(config.train.epochs as u64).with_style(
-                    indicatif::ProgressStyle::with_template(
-                        "{prefix} {bar:30} epoch {pos}/{len} {msg} ETA {eta}",
-                    )
-                    .context("progress bar template")?,
-                );
-                bar.set_prefix(format!("{} seed {seed}", mode.name()));
-                let t = &config.train;
-                if t.init_candidates > 1 && !resume {
-                    bar.set_message(format!(
-                        "screening {} initialisations, {} epochs each",
-                        t.init_candidates, t.screen_epochs
-                    ));
-                }
-                let result = train(&config, &run, &stop, &mut |r| {
+                })
+                .collect();
+            let bar = indicatif::ProgressBar::new(config.train.epochs as u64).with_style(
+                indicatif::ProgressStyle::with_template(
+                    "{prefix} {bar:30} epoch {pos}/{len} {msg} ETA {eta}",
+                )
+                .context("progress bar template")?,
+            );
+            let listed: Vec<String> = seeds.iter().map(u64::to_string).collect();
+            bar.set_prefix(format!("{} seeds {}", mode.name(), listed.join(",")));
+            let t = &config.train;
+            if t.init_candidates > 1 && !resume {
+                bar.set_message(format!(
+                    "screening {} initialisations, {} epochs each",
+                    t.init_candidates, t.screen_epochs
+                ));
+            }
+            // Every seed (and every screening candidate) trains in one stacked computation.
+            let result = train_all(&config, &runs, &stop, &mut |k, r| {
+                if k + 1 == runs.len() {
                     bar.set_message(format!("objective {:.1}", r.probe_objective));
                     bar.set_position(r.epoch as u64);
-                });
-                bar.finish_and_clear();
-                let records = match result {
-                    Err(e @ TrainError::Interrupted { .. }) => {
-                        eprintln!("{e}");
-                        return Ok(ExitCode::from(130));
-                    }
-                    other => other?,
-                };
-                if let Some(r) = records.last() {
+                }
+            });
+            bar.finish_and_clear();
+            let outcomes = match result {
+                Err(e @ TrainError::Interrupted { .. }) => {
+                    eprintln!("{e}");
+                    return Ok(ExitCode::from(130));
+                }
+                other => other?,
+            };
+            for (run, outcome) in runs.iter().zip(&outcomes) {
+                if let Some(r) = outcome.records.last() {
                     outln!(
-                        "{} seed {seed}: {} epochs in {:.1} s, probe objective {:.2}, probe collisions {:.3}, failures {:.3} -> {}",
+                        "{} seed {}: {} epochs in {:.1} s, probe objective {:.2}, probe collisions {:.3}, failures {:.3} -> {}",
                         mode.name(),
+                        run.seed,
                         r.epoch,
                         r.wall_seconds,
                         r.probe_objective,
@@ -344,17 +352,12 @@ fn run(cli: Cli) -> Result<ExitCode> {
                         run.out.display()
                     );
                 }
-                let sidecar = mpgdrive::policy::file::paths(&run.out).1;
-                let screening = std::fs::read_to_string(&sidecar)
-                    .ok()
-                    .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).ok())
-                    .and_then(|v| v["metrics"].get("init_screening").cloned());
-                if let Some(s) = screening {
+                if let Some(s) = &outcome.screening {
                     outln!(
-                        "  initialisation {} kept (probe objectives after {} epochs: {})",
-                        s["chosen"],
-                        s["screen_epochs"],
-                        s["probe_objectives"]
+                        "  initialisation {} kept (probe objectives after {} epochs: {:?})",
+                        s.chosen,
+                        s.screen_epochs,
+                        s.probe_objectives
                     );
                 }
             }

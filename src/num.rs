@@ -176,4 +176,7 @@ impl Num for Tensor {
     fn select(mask: &Self, a: &Self, b: &Self) -> Self {
         a.where_self(&mask.gt(0.5), b)
     }
+    fn recip(&self) -> Self {
+        self.reciprocal() // one operation instead of two
+    }
 }

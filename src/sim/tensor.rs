@@ -31,6 +31,9 @@ pub struct TensorBatch {
     pub phi: Tensor,
     /// 1.0 on the ramp, 0.0 in the target lane (no gradient).
     pub on_ramp: Tensor,
+    /// The same states as plain scenes, without gradient: the discrete work (neighbours,
+    /// merge gate, collisions) reads them, copied out of the tensors once per step.
+    detached: Vec<Scene>,
 }
 
 fn to_vec(t: &Tensor) -> Vec<f64> {
@@ -51,11 +54,30 @@ impl TensorBatch {
             v: field(|v| v.v),
             phi: field(|v| v.phi),
             on_ramp: field(|v| if v.on_ramp { 1.0 } else { 0.0 }),
+            detached: scenes.to_vec(),
         }
     }
 
+    /// A batch of these tensors (the scenes are copied out of them).
+    fn of_tensors(x: Tensor, y: Tensor, v: Tensor, phi: Tensor, on_ramp: Tensor) -> Self {
+        let mut batch = TensorBatch {
+            x,
+            y,
+            v,
+            phi,
+            on_ramp,
+            detached: Vec::new(),
+        };
+        batch.detached = batch.copy_scenes();
+        batch
+    }
+
     /// The detached states as scenes.
-    pub fn to_scenes(&self) -> Vec<Scene> {
+    pub fn scenes(&self) -> &[Scene] {
+        &self.detached
+    }
+
+    fn copy_scenes(&self) -> Vec<Scene> {
         let n = self.x.size()[1] as usize;
         let (x, y, v, phi, r) = (
             to_vec(&self.x),
@@ -104,7 +126,7 @@ pub enum Which {
 impl NeighborIndex {
     /// Neighbours of the batch's current (detached) state.
     pub fn of(batch: &TensorBatch) -> Self {
-        let scenes = batch.to_scenes();
+        let scenes = batch.scenes();
         let n = scenes[0].len();
         let mut idx = vec![vec![0i64; scenes.len() * n]; 4];
         let mut present = vec![vec![0f64; scenes.len() * n]; 4];
@@ -198,7 +220,7 @@ pub fn apply_limits(
 fn merge_gate(config: &Config, batch: &TensorBatch, a: &Tensor) -> Tensor {
     let rules = GateRules::new(config);
     let closed: Vec<f64> = batch
-        .to_scenes()
+        .scenes()
         .iter()
         .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(gate_holds(s, i, &rules)))))
         .collect();
@@ -209,23 +231,51 @@ fn merge_gate(config: &Config, batch: &TensorBatch, a: &Tensor) -> Tensor {
     <Tensor as Num>::select(&closed, &Num::min(a, &bound), a)
 }
 
+/// The unordered player pairs `i < j` of `n` players, as index tensors, and which pairs each
+/// player belongs to: the pair terms are symmetric (Theorem 2), so each is computed once.
+#[derive(Debug)]
+pub struct Pairs {
+    first: Tensor,
+    second: Tensor,
+    /// `[pairs, n]`: 1 where the pair holds the player.
+    incidence: Tensor,
+}
+
+impl Pairs {
+    /// The pairs of `n` players, `kind` for the incidence matrix.
+    pub fn new(n: usize, kind: Kind) -> Self {
+        let pairs: Vec<(i64, i64)> = (0..n as i64)
+            .flat_map(|i| (i + 1..n as i64).map(move |j| (i, j)))
+            .collect();
+        let mut incidence = vec![0.0f64; pairs.len() * n];
+        for (p, &(i, j)) in pairs.iter().enumerate() {
+            incidence[p * n + i as usize] = 1.0;
+            incidence[p * n + j as usize] = 1.0;
+        }
+        let index = |f: fn(&(i64, i64)) -> i64| Tensor::from_slice(&pairs.iter().map(f).collect::<Vec<_>>());
+        Pairs {
+            first: index(|p| p.0),
+            second: index(|p| p.1),
+            incidence: Tensor::from_slice(&incidence)
+                .reshape([pairs.len() as i64, n as i64])
+                .to_kind(kind),
+        }
+    }
+}
+
 /// Rewards `r_i` (`[batch, agents]`) and potential `phi` (`[batch]`) of the paper's reward.
-pub fn rewards(config: &Config, batch: &TensorBatch, u: &Tensor) -> (Tensor, Tensor) {
+pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Tensor) -> (Tensor, Tensor) {
     let r = &config.reward;
     let x_c = config.scenario.conflict_point;
     let own = terms::speed_tracking(&batch.v, r.v_desired) * r.w_speed + terms::comfort(u) * r.w_comfort;
-    let (xi, xj) = (batch.x.unsqueeze(2), batch.x.unsqueeze(1));
-    let (vi, vj) = (batch.v.unsqueeze(2), batch.v.unsqueeze(1));
-    let same_lane = 1.0 - (batch.on_ramp.unsqueeze(2) - batch.on_ramp.unsqueeze(1)).abs();
+    let ends = |t: &Tensor| (t.index_select(1, &pairs.first), t.index_select(1, &pairs.second));
+    let ((xi, xj), (vi, vj), (ri, rj)) = (ends(&batch.x), ends(&batch.v), ends(&batch.on_ramp));
+    let same_lane: Tensor = 1.0 - (ri - rj).abs();
     let ttc = terms::same_lane_ttc(&xi, &vi, &xj, &vj, r.v_c, r.epsilon) * r.w_ttc;
     let gap = terms::conflict_time_gap(&xi, &vi, &xj, &vj, x_c, r.epsilon) * r.w_conflict;
-    let pair = &same_lane * ttc + (1.0 - &same_lane) * gap;
-    let n = batch.x.size()[1];
-    let ones = Tensor::ones([n, n], (batch.x.kind(), batch.x.device()));
-    let off_diagonal = &ones - Tensor::eye(n, (batch.x.kind(), batch.x.device()));
-    let reward = &own + (&pair * &off_diagonal).sum_dim_intlist(2, false, None);
-    let potential = own.sum_dim_intlist(1, false, None)
-        + (&pair * ones.tril(-1)).sum_dim_intlist([1, 2].as_slice(), false, None);
+    let pair: Tensor = &same_lane * ttc + (1.0 - &same_lane) * gap;
+    let reward = &own + pair.matmul(&pairs.incidence);
+    let potential = own.sum_dim_intlist(1, false, None) + pair.sum_dim_intlist(1, false, None);
     (reward, potential)
 }
 
@@ -245,13 +295,13 @@ pub fn advance(config: &Config, batch: &TensorBatch, u: &Tensor) -> TensorBatch 
     let next = bicycle_step(&k, u, &u.zeros_like(), axles, config.sim.dt);
     let before_conflict = Num::gt(&next.x.full(config.scenario.conflict_point), &next.x);
     let on_ramp = &batch.on_ramp * before_conflict;
-    TensorBatch {
-        y: on_ramp.mul_c(-config.scenario.lane_width),
-        x: next.x,
-        v: next.v,
-        phi: next.phi,
+    TensorBatch::of_tensors(
+        next.x,
+        on_ramp.mul_c(-config.scenario.lane_width),
+        next.v,
+        next.phi,
         on_ramp,
-    }
+    )
 }
 
 /// Discounted returns `[batch, agents]` and potential returns `[batch]` of a rollout.
@@ -284,11 +334,12 @@ pub fn rollout(
     let mut potential = Tensor::zeros([b], (kind, tch::Device::Cpu));
     let mut alive = vec![1.0f64; scenes.len()];
     let mut discount = 1.0;
+    let pairs = Pairs::new(scenes[0].len(), kind);
     for step in 0..steps {
         let nb = NeighborIndex::of(&batch);
         let raw = act(&batch, &nb, step);
         let u = apply_limits(config, &batch, &nb, &raw, feasibility);
-        let (r, phi) = rewards(config, &batch, &u);
+        let (r, phi) = rewards(config, &pairs, &batch, &u);
         let live = Tensor::from_slice(&alive).to_kind(kind);
         returns = returns + &r * live.unsqueeze(1) * discount;
         potential = potential + &phi * &live * discount;
@@ -296,8 +347,8 @@ pub fn rollout(
         if terminate_on_collision {
             let v = &config.vehicle;
             let mut crashed = vec![0.0f64; alive.len()];
-            for ((a, c), scene) in alive.iter_mut().zip(&mut crashed).zip(batch.to_scenes()) {
-                if *a > 0.0 && first_collision(&scene, v.length, v.width).is_some() {
+            for ((a, c), scene) in alive.iter_mut().zip(&mut crashed).zip(batch.scenes()) {
+                if *a > 0.0 && first_collision(scene, v.length, v.width).is_some() {
                     (*a, *c) = (0.0, 1.0);
                 }
             }

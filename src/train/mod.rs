@@ -11,21 +11,24 @@
 //! failure rates, and the mean squared difference of the probe actions from the previous epoch.
 
 pub mod curves;
+pub mod stacked;
 
 use crate::atomic::with_suffix;
 use crate::config::Config;
 use crate::eval::EpisodeMetrics;
-use crate::policy::drive::{Others, policy_rollout};
 use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::network::{NetSpec, PolicyNet};
+use crate::policy::observation::{BatchPolicy, PolicyActor};
 use crate::policy::observation::{OBS_LAYOUT_VERSION, obs_dim, observe, tensor_observations};
 use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::{Driver, EpisodeOutcome, Recording};
+use crate::sim::rollout::{Driver, EpisodeOutcome, Recording, RolloutOptions, rollout};
 use crate::sim::sampler::{Purpose, purpose_seed, sample_scenes};
 use crate::sim::state::Scene;
 use crate::sim::tensor::{self, idm_actions};
 use curves::EpochRecord;
+use stacked::StackedNet;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 use tch::{Kind, Tensor, nn::OptimizerConfig};
@@ -72,19 +75,24 @@ pub enum TrainError {
         /// What differs.
         message: String,
     },
-    /// Stopped by a request (Ctrl-C); a checkpoint of the last finished epoch was written.
-    #[error("interrupted after epoch {epoch}; checkpoint {checkpoint} written, continue with --resume")]
+    /// Stopped by a request (Ctrl-C); a checkpoint of the last finished epoch of every run
+    /// was written.
+    #[error(
+        "interrupted after epoch {epoch}; checkpoints written ({checkpoint} and one per other seed), continue with --resume"
+    )]
     Interrupted {
         /// Last finished epoch.
         epoch: usize,
-        /// The checkpoint base path.
+        /// The checkpoint base path of the first run.
         checkpoint: PathBuf,
     },
     /// The objective stopped being a finite number.
     #[error(
-        "training diverged at epoch {epoch}: the objective is {value}; lower train.learning_rate or train.grad_clip"
+        "training of seed {seed} diverged at epoch {epoch}: the objective is {value}; lower train.learning_rate or train.grad_clip"
     )]
     Diverged {
+        /// The run's seed.
+        seed: u64,
         /// The epoch.
         epoch: usize,
         /// The objective's value.
@@ -121,21 +129,25 @@ pub fn curves_path(out: &Path) -> PathBuf {
     with_suffix(out, ".curves.csv")
 }
 
-/// Raw actions of every player for a tensor batch: the network for the players it drives,
+/// Raw actions of every player for a tensor batch of `members` x `batch` scenarios (member
+/// `k`'s scenarios are rows `k * batch ..`): each member's network for the players it drives,
 /// IDM for the others.
 fn tensor_actions(
     config: &Config,
-    net: &PolicyNet,
+    net: &StackedNet,
     mode: Mode,
     batch: &tensor::TensorBatch,
     nb: &tensor::NeighborIndex,
 ) -> Tensor {
     let obs = tensor_observations(config.scenario.conflict_point, batch, nb).to_kind(Kind::Float);
-    let (b, n) = (obs.size()[0], obs.size()[1]);
+    let (b, n, d) = (obs.size()[0], obs.size()[1], obs.size()[2]);
+    let members = net.members() as i64;
     match mode {
-        Mode::Mpg => net.forward(&obs.reshape([b * n, -1])).reshape([b, n]),
+        Mode::Mpg => net.forward(&obs.reshape([members, -1, d])).reshape([b, n]),
         Mode::Sarl => {
-            let ego = net.forward(&obs.select(1, 0)).unsqueeze(1);
+            let ego = net
+                .forward(&obs.select(1, 0).reshape([members, -1, d]))
+                .reshape([b, 1]);
             let others = idm_actions(config, batch, nb)
                 .to_kind(Kind::Float)
                 .narrow(1, 1, n - 1);
@@ -144,16 +156,9 @@ fn tensor_actions(
     }
 }
 
-/// Who drives the other players on the probe set: the shared policy (mpg) or IDM (sarl).
-fn probe_others(mode: Mode) -> Others<'static> {
-    match mode {
-        Mode::Mpg => Others::SameNetwork,
-        Mode::Sarl => Others::Driver(Driver::Idm),
-    }
-}
-
-/// Actions of every player at the probe initial states (for the action-difference curve).
-fn probe_actions(config: &Config, net: &PolicyNet, probe: &[Scene]) -> Tensor {
+/// Actions of every player at the probe initial states of every member (for the
+/// action-difference curve): `[members, scenes * players]`.
+fn probe_actions(config: &Config, net: &mut StackedNet, probe: &[Scene]) -> Tensor {
     let n = config.n_agents();
     let dim = obs_dim(n);
     let mut obs = vec![0f32; probe.len() * n * dim];
@@ -171,7 +176,9 @@ fn probe_actions(config: &Config, net: &PolicyNet, probe: &[Scene]) -> Tensor {
             );
         }
     }
-    tch::no_grad(|| net.forward(&Tensor::from_slice(&obs).reshape([(probe.len() * n) as i64, dim as i64])))
+    let mut actions = vec![0f32; probe.len() * n];
+    net.act(&obs, actions.len(), &mut actions);
+    Tensor::from_slice(&actions).reshape([net.members() as i64, -1])
 }
 
 fn objective(mode: Mode, o: &EpisodeOutcome) -> f64 {
@@ -213,60 +220,160 @@ pub fn learning_rate(t: &crate::config::TrainConfig, epoch: usize) -> f64 {
     t.learning_rate * (t.learning_rate_final / t.learning_rate).powf(progress)
 }
 
-/// One epoch of Algorithm 1: gradient ascent on the objective over the epoch's minibatch of
-/// training states (the learning-rate schedule of `epoch`). Returns the minibatch objective.
-fn gradient_step(
-    config: &Config,
-    run: &TrainRun,
-    net: &PolicyNet,
-    opt: &mut tch::nn::Optimizer,
-    epoch: usize,
-) -> Result<f64, TrainError> {
-    let t = &config.train;
-    let train_seed = purpose_seed(run.seed, Purpose::Train);
-    opt.set_lr(learning_rate(t, epoch));
-    let scenes = sample_scenes(config, train_seed, epoch * t.batch, t.batch);
-    let out = tensor::rollout(
-        config,
-        &scenes,
-        Kind::Float,
-        config.n_steps(),
-        config.sim.feasibility,
-        config.sim.terminate_on_collision,
-        |b, nb, _| tensor_actions(config, net, run.mode, b, nb),
-    );
-    let objective_t = match run.mode {
-        Mode::Mpg => out.potential.mean(Kind::Float),
-        Mode::Sarl => out.returns.select(1, 0).mean(Kind::Float),
+/// Networks trained together: the stacked parameters, their optimiser, and each member's
+/// training seed (whose stream gives its minibatches).
+struct Stack {
+    mode: Mode,
+    net: StackedNet,
+    opt: tch::nn::Optimizer,
+    seeds: Vec<u64>,
+}
+
+impl Stack {
+    fn new(config: &Config, mode: Mode, nets: &[PolicyNet], seeds: Vec<u64>) -> Result<Self, TrainError> {
+        let net = StackedNet::from_nets(nets);
+        let opt = tch::nn::Adam::default().build(&net.vs, config.train.learning_rate)?;
+        Ok(Stack {
+            mode,
+            net,
+            opt,
+            seeds,
+        })
+    }
+
+    /// One epoch of Algorithm 1 for every member: gradient ascent on its objective over its
+    /// minibatch of training states (the learning-rate schedule of `epoch`), all members in
+    /// one rollout. Returns each member's minibatch objective.
+    fn gradient_step(&mut self, config: &Config, epoch: usize) -> Result<Vec<f64>, TrainError> {
+        let t = &config.train;
+        self.opt.set_lr(learning_rate(t, epoch));
+        let scenes: Vec<Scene> = self
+            .seeds
+            .iter()
+            .flat_map(|&s| sample_scenes(config, purpose_seed(s, Purpose::Train), epoch * t.batch, t.batch))
+            .collect();
+        let out = tensor::rollout(
+            config,
+            &scenes,
+            Kind::Float,
+            config.n_steps(),
+            config.sim.feasibility,
+            config.sim.terminate_on_collision,
+            |b, nb, _| tensor_actions(config, &self.net, self.mode, b, nb),
+        );
+        let per_episode = match self.mode {
+            Mode::Mpg => out.potential,
+            Mode::Sarl => out.returns.select(1, 0),
+        };
+        let objectives = per_episode
+            .reshape([self.seeds.len() as i64, t.batch as i64])
+            .mean_dim(1, false, Kind::Float);
+        let values = Vec::<f64>::try_from(objectives.to_kind(Kind::Double)).expect("a CPU tensor");
+        let diverged = |k: usize, value: f64| TrainError::Diverged {
+            seed: self.seeds[k],
+            epoch: epoch + 1,
+            value,
+        };
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err(diverged(k, values[k]));
+        }
+        self.opt.zero_grad();
+        (-objectives.sum(Kind::Float)).backward();
+        self.net.clip_grad_norm(t.grad_clip);
+        self.opt.step();
+        // A NaN gradient would poison the parameters without changing this epoch's objective.
+        if let Some(k) = self.net.finite().iter().position(|ok| !ok) {
+            return Err(diverged(k, f64::NAN));
+        }
+        Ok(values)
+    }
+}
+
+/// Rolls every member out on its probe states (`probe`: each member's scenes in turn, as
+/// many for each) in the scalar engine, the members' networks in one batched call per step.
+/// Returns the outcomes, member after member.
+fn probe_outcomes(config: &Config, mode: Mode, net: &StackedNet, probe: &[Scene]) -> Vec<EpisodeOutcome> {
+    // One worker: the batched call needs every member's rows (the member count sets the
+    // work per call, not the thread count).
+    let opts = RolloutOptions {
+        threads: 1,
+        recording: Recording::Summary,
+        ..RolloutOptions::from_config(config)
     };
-    let train_objective = objective_t.double_value(&[]);
-    if !train_objective.is_finite() {
-        return Err(TrainError::Diverged {
-            epoch: epoch + 1,
-            value: train_objective,
-        });
-    }
-    opt.backward_step_clip_norm(&(-&objective_t), t.grad_clip);
-    // A NaN gradient would poison the parameters without changing this epoch's objective.
-    let finite = net
-        .vs
-        .trainable_variables()
+    let frozen = Mutex::new(Some(net.snapshot()));
+    rollout(config, &opts, probe, || {
+        let net = frozen.lock().expect("probe lock").take().expect("one worker");
+        PolicyActor::new(config, net, Driver::Idm, mode == Mode::Mpg)
+    })
+}
+
+/// Each member's mean objective over its probe outcomes.
+fn mean_objectives(mode: Mode, outcomes: &[EpisodeOutcome], members: usize) -> Vec<f64> {
+    outcomes
+        .chunks(outcomes.len() / members)
+        .map(|c| c.iter().map(|o| objective(mode, o)).sum::<f64>() / c.len() as f64)
+        .collect()
+}
+
+/// Each member's epoch record on the probe states (all but its training objective, epoch
+/// number and wall time), and the new probe actions.
+fn probe(
+    config: &Config,
+    mode: Mode,
+    net: &mut StackedNet,
+    probe: &[Scene],
+    previous: &Tensor,
+) -> (Vec<EpochRecord>, Tensor) {
+    let outcomes = probe_outcomes(config, mode, net, probe);
+    let actions = probe_actions(config, net, probe);
+    let msd = Vec::<f64>::try_from(
+        (&actions - previous)
+            .square()
+            .mean_dim(1, false, Kind::Float)
+            .to_kind(Kind::Double),
+    )
+    .expect("a CPU tensor");
+    let records = outcomes
+        .chunks(outcomes.len() / net.members())
+        .zip(msd)
+        .map(|(outcomes, action_msd)| {
+            let m = outcomes.len() as f64;
+            let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
+            EpochRecord {
+                epoch: 0,
+                train_objective: 0.0,
+                probe_objective: outcomes.iter().map(|o| objective(mode, o)).sum::<f64>() / m,
+                action_msd,
+                probe_collision_rate: metrics.iter().filter(|x| x.collision).count() as f64 / m,
+                probe_failure_rate: metrics.iter().filter(|x| x.failure).count() as f64 / m,
+                wall_seconds: 0.0,
+                probe_ego_return: Some(outcomes.iter().map(|o| o.returns[0]).sum::<f64>() / m),
+            }
+        })
+        .collect();
+    (records, actions)
+}
+
+/// The probe initial states of each member's seed, member after member.
+fn member_seeds_probe(config: &Config, seeds: &[u64]) -> Vec<Scene> {
+    seeds
         .iter()
-        .all(|p| p.isfinite().all().int64_value(&[]) == 1);
-    if !finite {
-        return Err(TrainError::Diverged {
-            epoch: epoch + 1,
-            value: f64::NAN,
-        });
-    }
-    Ok(train_objective)
+        .flat_map(|&s| {
+            sample_scenes(
+                config,
+                purpose_seed(s, Purpose::Probe),
+                0,
+                config.train.probe_scenarios,
+            )
+        })
+        .collect()
 }
 
 /// The sidecar metrics: the last epoch's record, plus the initialisation screening if any.
-fn sidecar_metrics(records: &[EpochRecord], screening: &Option<serde_json::Value>) -> serde_json::Value {
+fn sidecar_metrics(records: &[EpochRecord], screening: &Option<InitScreening>) -> serde_json::Value {
     let mut m = serde_json::json!(records.last());
     if let (Some(s), Some(obj)) = (screening, m.as_object_mut()) {
-        obj.insert("init_screening".into(), s.clone());
+        obj.insert("init_screening".into(), serde_json::json!(s));
     }
     m
 }
@@ -279,7 +386,7 @@ pub fn init_seed(seed: u64, candidate: usize) -> i64 {
 
 /// Initialisation screening: each candidate initialisation trains for `screen_epochs`, and
 /// the one with the best probe objective is kept.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct InitScreening {
     /// Epochs each candidate trained.
     pub screen_epochs: usize,
@@ -289,40 +396,142 @@ pub struct InitScreening {
     pub chosen: usize,
 }
 
-/// Screens `train.init_candidates` initialisations (see [`InitScreening`]).
-fn screen_inits(config: &Config, run: &TrainRun, probe: &[Scene]) -> Result<InitScreening, TrainError> {
+/// Screens `train.init_candidates` initialisations of every run (see [`InitScreening`]), all
+/// candidates of all runs trained side by side.
+fn screen_inits(config: &Config, mode: Mode, seeds: &[u64]) -> Result<Vec<InitScreening>, TrainError> {
     let t = &config.train;
-    let mut probe_objectives = Vec::with_capacity(t.init_candidates);
-    for c in 0..t.init_candidates {
-        let spec = NetSpec::new(config.n_agents(), t.hidden, config.vehicle.max_accel);
-        let net = PolicyNet::seeded(spec, init_seed(run.seed, c));
-        let mut opt = tch::nn::Adam::default().build(&net.vs, t.learning_rate)?;
-        for epoch in 0..t.screen_epochs {
-            gradient_step(config, run, &net, &mut opt, epoch)?;
+    let spec = NetSpec::new(config.n_agents(), t.hidden, config.vehicle.max_accel);
+    let (mut nets, mut member_seeds) = (Vec::new(), Vec::new());
+    for &seed in seeds {
+        for c in 0..t.init_candidates {
+            nets.push(PolicyNet::seeded(spec.clone(), init_seed(seed, c)));
+            member_seeds.push(seed);
         }
-        let outcomes = policy_rollout(
-            config,
-            &net,
-            probe_others(run.mode),
-            probe,
-            t.threads,
-            Recording::Summary,
-        )?;
-        probe_objectives
-            .push(outcomes.iter().map(|o| objective(run.mode, o)).sum::<f64>() / outcomes.len() as f64);
     }
-    let chosen = (0..probe_objectives.len()).fold(0, |best, c| {
-        if probe_objectives[c] > probe_objectives[best] {
-            c
-        } else {
-            best
+    let mut stack = Stack::new(config, mode, &nets, member_seeds)?;
+    for epoch in 0..t.screen_epochs {
+        stack.gradient_step(config, epoch)?;
+    }
+    let probe_set: Vec<Scene> = member_seeds_probe(config, &stack.seeds);
+    let objectives = mean_objectives(
+        mode,
+        &probe_outcomes(config, mode, &stack.net, &probe_set),
+        nets.len(),
+    );
+    let screenings = objectives
+        .chunks(t.init_candidates)
+        .map(|probe_objectives| InitScreening {
+            screen_epochs: t.screen_epochs,
+            probe_objectives: probe_objectives.to_vec(),
+            // The first of the best.
+            chosen: (0..probe_objectives.len()).fold(0, |best, c| {
+                if probe_objectives[c] > probe_objectives[best] {
+                    c
+                } else {
+                    best
+                }
+            }),
+        })
+        .collect();
+    Ok(screenings)
+}
+
+/// What a finished run learned.
+#[derive(Debug, Clone)]
+pub struct TrainOutcome {
+    /// The curves, one record per epoch.
+    pub records: Vec<EpochRecord>,
+    /// The initialisation screening, when there was one.
+    pub screening: Option<InitScreening>,
+}
+
+/// A run's state before its training loop: its network, its curves so far and its screening.
+struct Start {
+    net: PolicyNet,
+    records: Vec<EpochRecord>,
+    screening: Option<InitScreening>,
+}
+
+fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
+    move |source| TrainError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Where `run` starts: its checkpoint with `--resume`, else a fresh network (not yet screened).
+fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
+    let t = &config.train;
+    let n = config.n_agents();
+    if let Some(dir) = run.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+    }
+    let ckpt = checkpoint_path(&run.out);
+    if run.resume && file::paths(&ckpt).1.exists() {
+        let (net, side) = file::load(&ckpt, n)?;
+        if side.mode != run.mode.name() || side.seed != run.seed || side.config != *config {
+            return Err(TrainError::ForeignCheckpoint {
+                path: ckpt,
+                message: "its mode, seed or configuration differs".into(),
+            });
         }
-    });
-    Ok(InitScreening {
-        screen_epochs: t.screen_epochs,
-        probe_objectives,
-        chosen,
+        let screening = side
+            .metrics
+            .get("init_screening")
+            .and_then(|s| serde_json::from_value(s.clone()).ok());
+        let curves = curves_path(&run.out);
+        let mut records = curves::read(&curves).map_err(io_error(&curves))?;
+        records.truncate(side.epochs);
+        return Ok(Start {
+            net,
+            records,
+            screening,
+        });
+    }
+    Ok(Start {
+        net: PolicyNet::seeded(
+            NetSpec::new(n, t.hidden, config.vehicle.max_accel),
+            run.seed as i64,
+        ),
+        records: Vec::new(),
+        screening: None,
     })
+}
+
+/// Writes a run's curves and policy file (`base`: the checkpoint or the final policy).
+fn save_run(
+    config: &Config,
+    run: &TrainRun,
+    base: &Path,
+    net: &PolicyNet,
+    records: &[EpochRecord],
+    screening: &Option<InitScreening>,
+) -> Result<(), TrainError> {
+    let curves = curves_path(&run.out);
+    curves::write(&curves, records).map_err(io_error(&curves))?;
+    let side = sidecar(
+        config,
+        run,
+        net,
+        records.len(),
+        sidecar_metrics(records, screening),
+    );
+    file::save(base, net, &side)?;
+    Ok(())
+}
+
+/// Keeps memory that training frees inside the process. Back-propagation through a whole
+/// rollout saves many large tensors and frees them every epoch; glibc's defaults return
+/// them to the kernel (`munmap`, heap trimming), and faulting them in again cost a fifth of
+/// the training time (measured with `perf`).
+fn keep_freed_memory() {
+    #[cfg(target_env = "gnu")]
+    // SAFETY: mallopt only changes glibc's allocation thresholds; it is called before
+    // training allocates, and any value is valid for these two parameters.
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 30);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
+    }
 }
 
 /// Trains one policy; `on_epoch` sees every epoch's record. Returns the curves.
@@ -335,124 +544,149 @@ pub fn train(
     stop: &AtomicBool,
     on_epoch: &mut dyn FnMut(&EpochRecord),
 ) -> Result<Vec<EpochRecord>, TrainError> {
+    let mut outcomes = train_all(config, std::slice::from_ref(run), stop, &mut |_, r| on_epoch(r))?;
+    Ok(outcomes.remove(0).records)
+}
+
+/// Trains every run (one mode, one seed each) side by side: their networks stacked
+/// ([`StackedNet`]) and their rollouts in one batch, so that libtorch's per-operation cost is
+/// paid once for all of them. Each run learns what it would learn alone (a member's
+/// computation does not depend on the others). `on_epoch` sees each run's records with the
+/// run's index.
+///
+/// When `stop` becomes true, training ends after the current epoch with a checkpoint of every
+/// run and [`TrainError::Interrupted`].
+pub fn train_all(
+    config: &Config,
+    runs: &[TrainRun],
+    stop: &AtomicBool,
+    on_epoch: &mut dyn FnMut(usize, &EpochRecord),
+) -> Result<Vec<TrainOutcome>, TrainError> {
     let t = &config.train;
     tch::set_num_threads(t.threads as i32);
-    let n = config.n_agents();
-    let mut net = PolicyNet::seeded(
-        NetSpec::new(n, t.hidden, config.vehicle.max_accel),
-        run.seed as i64,
-    );
-    let mut records: Vec<EpochRecord> = Vec::new();
-    if let Some(dir) = run.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|source| TrainError::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
-    }
-    let ckpt = checkpoint_path(&run.out);
-    let curves = curves_path(&run.out);
-    // Recorded in the sidecars' metrics (and carried through a resumed checkpoint).
-    let mut screening: Option<serde_json::Value> = None;
-    if run.resume && file::paths(&ckpt).1.exists() {
-        let (loaded, side) = file::load(&ckpt, n)?;
-        if side.mode != run.mode.name() || side.seed != run.seed || side.config != *config {
-            return Err(TrainError::ForeignCheckpoint {
-                path: ckpt,
-                message: "its mode, seed or configuration differs".into(),
-            });
-        }
-        net = loaded;
-        screening = side.metrics.get("init_screening").cloned();
-        records = curves::read(&curves).map_err(|source| TrainError::Io {
-            path: curves.clone(),
-            source,
-        })?;
-        records.truncate(side.epochs);
-    }
-    let probe = sample_scenes(
-        config,
-        purpose_seed(run.seed, Purpose::Probe),
-        0,
-        t.probe_scenarios,
-    );
-    if records.is_empty() && t.init_candidates > 1 {
-        let result = screen_inits(config, run, &probe)?;
-        net = PolicyNet::seeded(
-            NetSpec::new(n, t.hidden, config.vehicle.max_accel),
-            init_seed(run.seed, result.chosen),
-        );
-        screening = Some(serde_json::json!(result));
-    }
-    let mut opt = tch::nn::Adam::default().build(&net.vs, t.learning_rate)?;
-    let mut previous = probe_actions(config, &net, &probe);
-    let start = Instant::now();
-    let elapsed_before = records.last().map_or(0.0, |r| r.wall_seconds);
-    for epoch in records.len()..t.epochs {
-        let train_objective = gradient_step(config, run, &net, &mut opt, epoch)?;
-
-        let outcomes = policy_rollout(
-            config,
-            &net,
-            probe_others(run.mode),
-            &probe,
-            t.threads,
-            Recording::Summary,
-        )?;
-        let m = outcomes.len() as f64;
-        let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
-        let actions = probe_actions(config, &net, &probe);
-        let record = EpochRecord {
-            epoch: epoch + 1,
-            train_objective,
-            probe_objective: outcomes.iter().map(|o| objective(run.mode, o)).sum::<f64>() / m,
-            action_msd: (&actions - &previous)
-                .square()
-                .mean(Kind::Float)
-                .double_value(&[]),
-            probe_collision_rate: metrics.iter().filter(|x| x.collision).count() as f64 / m,
-            probe_failure_rate: metrics.iter().filter(|x| x.failure).count() as f64 / m,
-            wall_seconds: elapsed_before + start.elapsed().as_secs_f64(),
-            probe_ego_return: Some(outcomes.iter().map(|o| o.returns[0]).sum::<f64>() / m),
-        };
-        previous = actions;
-        on_epoch(&record);
-        records.push(record);
-        let interrupted = stop.load(Ordering::SeqCst);
-        if ((epoch + 1) % t.checkpoint_every == 0 || interrupted) && epoch + 1 < t.epochs {
-            curves::write(&curves, &records).map_err(|source| TrainError::Io {
-                path: curves.clone(),
-                source,
-            })?;
-            file::save(
-                &ckpt,
-                &net,
-                &sidecar(
-                    config,
-                    run,
-                    &net,
-                    epoch + 1,
-                    sidecar_metrics(&records, &screening),
-                ),
-            )?;
-            if interrupted {
-                return Err(TrainError::Interrupted {
-                    epoch: epoch + 1,
-                    checkpoint: ckpt,
-                });
+    keep_freed_memory();
+    let mut starts = runs
+        .iter()
+        .map(|run| start_of(config, run))
+        .collect::<Result<Vec<_>, _>>()?;
+    // Screening, for every run that starts from scratch, all modes' candidates per mode.
+    for mode in [Mode::Mpg, Mode::Sarl] {
+        let fresh: Vec<usize> = (0..runs.len())
+            .filter(|&r| runs[r].mode == mode && starts[r].records.is_empty())
+            .collect();
+        if t.init_candidates > 1 && !fresh.is_empty() {
+            let seeds: Vec<u64> = fresh.iter().map(|&r| runs[r].seed).collect();
+            for (&r, screening) in fresh.iter().zip(screen_inits(config, mode, &seeds)?) {
+                starts[r].net = PolicyNet::seeded(
+                    NetSpec::new(config.n_agents(), t.hidden, config.vehicle.max_accel),
+                    init_seed(runs[r].seed, screening.chosen),
+                );
+                starts[r].screening = Some(screening);
             }
         }
     }
-    curves::write(&curves, &records).map_err(|source| TrainError::Io {
-        path: curves.clone(),
-        source,
-    })?;
-    file::save(
-        &run.out,
-        &net,
-        &sidecar(config, run, &net, t.epochs, sidecar_metrics(&records, &screening)),
-    )?;
-    for path in [file::paths(&ckpt).0, file::paths(&ckpt).1] {
-        let _ = std::fs::remove_file(path); // the finished policy supersedes the checkpoint
+    // Runs that start at the same epoch in the same mode train together.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for r in 0..runs.len() {
+        let same = |g: &Vec<usize>| {
+            runs[g[0]].mode == runs[r].mode && starts[g[0]].records.len() == starts[r].records.len()
+        };
+        match groups.iter_mut().find(|g| same(g)) {
+            Some(g) => g.push(r),
+            None => groups.push(vec![r]),
+        }
     }
-    Ok(records)
+    let mut starts: Vec<Option<Start>> = starts.into_iter().map(Some).collect();
+    let mut finished: Vec<Option<TrainOutcome>> = (0..runs.len()).map(|_| None).collect();
+    for group in groups {
+        let members: Vec<(&TrainRun, Start)> = group
+            .iter()
+            .map(|&r| (&runs[r], starts[r].take().expect("one group per run")))
+            .collect();
+        let outcomes = train_group(config, &members, stop, &mut |k, record| {
+            on_epoch(group[k], record)
+        })?;
+        for (&r, outcome) in group.iter().zip(outcomes) {
+            finished[r] = Some(outcome);
+        }
+    }
+    Ok(finished
+        .into_iter()
+        .map(|o| o.expect("every run in a group"))
+        .collect())
+}
+
+/// The training loop of runs of one mode that start at the same epoch.
+fn train_group(
+    config: &Config,
+    members: &[(&TrainRun, Start)],
+    stop: &AtomicBool,
+    on_epoch: &mut dyn FnMut(usize, &EpochRecord),
+) -> Result<Vec<TrainOutcome>, TrainError> {
+    let t = &config.train;
+    let mode = members[0].0.mode;
+    let nets: Vec<PolicyNet> = members
+        .iter()
+        .map(|(_, s)| s.net.try_clone())
+        .collect::<Result<_, _>>()?;
+    let mut stack = Stack::new(config, mode, &nets, members.iter().map(|(r, _)| r.seed).collect())?;
+    let probe_set = member_seeds_probe(config, &stack.seeds);
+    let mut previous = probe_actions(config, &mut stack.net, &probe_set);
+    let mut records: Vec<Vec<EpochRecord>> = members.iter().map(|(_, s)| s.records.clone()).collect();
+    let first = records[0].len();
+    let start = Instant::now();
+    for epoch in first..t.epochs {
+        let train_objectives = stack.gradient_step(config, epoch)?;
+        let (probed, actions) = probe(config, mode, &mut stack.net, &probe_set, &previous);
+        previous = actions;
+        for (k, ((_, s), mut record)) in members.iter().zip(probed).enumerate() {
+            record.epoch = epoch + 1;
+            record.train_objective = train_objectives[k];
+            let before = s.records.last().map_or(0.0, |r| r.wall_seconds);
+            record.wall_seconds = before + start.elapsed().as_secs_f64();
+            on_epoch(k, &record);
+            records[k].push(record);
+        }
+        let interrupted = stop.load(Ordering::SeqCst);
+        let checkpoint = ((epoch + 1) % t.checkpoint_every == 0 || interrupted) && epoch + 1 < t.epochs;
+        if checkpoint {
+            for (k, (run, s)) in members.iter().enumerate() {
+                let net = stack.net.member(k)?;
+                save_run(
+                    config,
+                    run,
+                    &checkpoint_path(&run.out),
+                    &net,
+                    &records[k],
+                    &s.screening,
+                )?;
+            }
+        }
+        if checkpoint && interrupted {
+            return Err(TrainError::Interrupted {
+                epoch: epoch + 1,
+                checkpoint: checkpoint_path(&members[0].0.out),
+            });
+        }
+    }
+    let mut outcomes = Vec::with_capacity(members.len());
+    for (k, ((run, s), records)) in members.iter().zip(records).enumerate() {
+        save_run(
+            config,
+            run,
+            &run.out,
+            &stack.net.member(k)?,
+            &records,
+            &s.screening,
+        )?;
+        let ckpt = checkpoint_path(&run.out);
+        for path in [file::paths(&ckpt).0, file::paths(&ckpt).1] {
+            let _ = std::fs::remove_file(path); // the finished policy supersedes the checkpoint
+        }
+        outcomes.push(TrainOutcome {
+            records,
+            screening: s.screening.clone(),
+        });
+    }
+    Ok(outcomes)
 }
