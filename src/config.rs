@@ -191,7 +191,9 @@ pub struct TrainConfig {
     pub probe_scenarios: usize,
     /// Epochs between checkpoints.
     pub checkpoint_every: usize,
-    /// libtorch intra-op threads.
+    /// Worker threads: the runs (and screening candidates) are split among them, each worker
+    /// trains its share as one stacked computation with one libtorch thread. A run's result
+    /// does not depend on it.
     pub threads: usize,
     /// Initialisations screened before training (1: none; the run's own seed).
     #[serde(default = "one")]

@@ -333,16 +333,17 @@ fn probe(
             .to_kind(Kind::Double),
     )
     .expect("a CPU tensor");
+    let objectives = mean_objectives(mode, &outcomes, net.members());
     let records = outcomes
         .chunks(outcomes.len() / net.members())
-        .zip(msd)
-        .map(|(outcomes, action_msd)| {
+        .zip(objectives.into_iter().zip(msd))
+        .map(|(outcomes, (probe_objective, action_msd))| {
             let m = outcomes.len() as f64;
             let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
             EpochRecord {
                 epoch: 0,
                 train_objective: 0.0,
-                probe_objective: outcomes.iter().map(|o| objective(mode, o)).sum::<f64>() / m,
+                probe_objective,
                 action_msd,
                 probe_collision_rate: metrics.iter().filter(|x| x.collision).count() as f64 / m,
                 probe_failure_rate: metrics.iter().filter(|x| x.failure).count() as f64 / m,
@@ -401,23 +402,26 @@ pub struct InitScreening {
 fn screen_inits(config: &Config, mode: Mode, seeds: &[u64]) -> Result<Vec<InitScreening>, TrainError> {
     let t = &config.train;
     let spec = NetSpec::new(config.n_agents(), t.hidden, config.vehicle.max_accel);
-    let (mut nets, mut member_seeds) = (Vec::new(), Vec::new());
-    for &seed in seeds {
-        for c in 0..t.init_candidates {
-            nets.push(PolicyNet::seeded(spec.clone(), init_seed(seed, c)));
-            member_seeds.push(seed);
-        }
-    }
-    let mut stack = Stack::new(config, mode, &nets, member_seeds)?;
-    for epoch in 0..t.screen_epochs {
-        stack.gradient_step(config, epoch)?;
-    }
-    let probe_set: Vec<Scene> = member_seeds_probe(config, &stack.seeds);
-    let objectives = mean_objectives(
-        mode,
-        &probe_outcomes(config, mode, &stack.net, &probe_set),
-        nets.len(),
-    );
+    let members: Vec<(PolicyNet, u64)> = seeds
+        .iter()
+        .flat_map(|&seed| (0..t.init_candidates).map(move |c| (seed, c)))
+        .map(|(seed, c)| (PolicyNet::seeded(spec.clone(), init_seed(seed, c)), seed))
+        .collect();
+    let objectives = in_workers(
+        t.threads,
+        members,
+        |_, share: Vec<(PolicyNet, u64)>, _: &dyn Fn(())| {
+            let (nets, seeds): (Vec<PolicyNet>, Vec<u64>) = share.into_iter().unzip();
+            let mut stack = Stack::new(config, mode, &nets, seeds)?;
+            for epoch in 0..t.screen_epochs {
+                stack.gradient_step(config, epoch)?;
+            }
+            let probe_set = member_seeds_probe(config, &stack.seeds);
+            let outcomes = probe_outcomes(config, mode, &stack.net, &probe_set);
+            Ok(mean_objectives(mode, &outcomes, nets.len()))
+        },
+        &mut |()| {},
+    )?;
     let screenings = objectives
         .chunks(t.init_candidates)
         .map(|probe_objectives| InitScreening {
@@ -529,7 +533,9 @@ fn keep_freed_memory() {
     // SAFETY: mallopt only changes glibc's allocation thresholds; it is called before
     // training allocates, and any value is valid for these two parameters.
     unsafe {
-        libc::mallopt(libc::M_MMAP_THRESHOLD, 1 << 30);
+        // 32 MiB, glibc's largest threshold (a larger value is refused), above training's
+        // largest tensor; setting it also stops glibc from moving it.
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
         libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
     }
 }
@@ -563,7 +569,6 @@ pub fn train_all(
     on_epoch: &mut dyn FnMut(usize, &EpochRecord),
 ) -> Result<Vec<TrainOutcome>, TrainError> {
     let t = &config.train;
-    tch::set_num_threads(t.threads as i32);
     keep_freed_memory();
     let mut starts = runs
         .iter()
@@ -603,9 +608,7 @@ pub fn train_all(
             .iter()
             .map(|&r| (&runs[r], starts[r].take().expect("one group per run")))
             .collect();
-        let outcomes = train_group(config, &members, stop, &mut |k, record| {
-            on_epoch(group[k], record)
-        })?;
+        let outcomes = train_group(config, members, stop, &mut |k, record| on_epoch(group[k], record))?;
         for (&r, outcome) in group.iter().zip(outcomes) {
             finished[r] = Some(outcome);
         }
@@ -616,8 +619,88 @@ pub fn train_all(
         .collect())
 }
 
-/// The training loop of runs of one mode that start at the same epoch.
+/// Runs `work` on contiguous shares of `items`, one share per worker thread (at most
+/// `workers`, each with one libtorch thread), and returns the results in the order of the
+/// items. `work` gets the index of its first item, its share and a reporter whose messages
+/// reach `on_report` on the calling thread as they come (with one worker, the work runs on the
+/// calling thread and each report is handled before it goes on). Training's members do not depend on
+/// each other, so the split changes nothing but the wall time.
+fn in_workers<T: Send, R: Send, M: Send>(
+    workers: usize,
+    items: Vec<T>,
+    work: impl Fn(usize, Vec<T>, &dyn Fn(M)) -> Result<Vec<R>, TrainError> + Sync,
+    on_report: &mut dyn FnMut(M),
+) -> Result<Vec<R>, TrainError> {
+    let share = items.len().div_ceil(workers.clamp(1, items.len().max(1)));
+    if share >= items.len() {
+        // One worker: this thread, so that `on_report` runs before the work goes on.
+        tch::set_num_threads(1);
+        let on_report = std::cell::RefCell::new(on_report);
+        return work(0, items, &|m| (on_report.borrow_mut())(m));
+    }
+    let mut shares = Vec::new();
+    let mut items = items.into_iter();
+    loop {
+        let part: Vec<T> = items.by_ref().take(share).collect();
+        if part.is_empty() {
+            break;
+        }
+        shares.push(part);
+    }
+    let (tx, rx) = std::sync::mpsc::channel::<M>();
+    std::thread::scope(|s| {
+        let work = &work;
+        let handles: Vec<_> = shares
+            .into_iter()
+            .enumerate()
+            .map(|(w, part)| {
+                let tx = tx.clone();
+                s.spawn(move || {
+                    // A new thread starts with libtorch's default thread count.
+                    tch::set_num_threads(1);
+                    work(w * share, part, &|m| {
+                        let _ = tx.send(m);
+                    })
+                })
+            })
+            .collect();
+        drop(tx);
+        for m in rx {
+            on_report(m);
+        }
+        let mut results = Vec::new();
+        let mut interrupted = None;
+        for h in handles {
+            match h.join().expect("training worker panicked") {
+                Ok(r) => results.extend(r),
+                Err(e @ TrainError::Interrupted { .. }) => interrupted = interrupted.or(Some(e)),
+                Err(e) => return Err(e),
+            }
+        }
+        interrupted.map_or(Ok(results), Err)
+    })
+}
+
+/// The training loop of runs of one mode that start at the same epoch, split among
+/// `train.threads` workers.
 fn train_group(
+    config: &Config,
+    members: Vec<(&TrainRun, Start)>,
+    stop: &AtomicBool,
+    on_epoch: &mut dyn FnMut(usize, &EpochRecord),
+) -> Result<Vec<TrainOutcome>, TrainError> {
+    in_workers(
+        config.train.threads,
+        members,
+        |first, share, report: &dyn Fn((usize, EpochRecord))| {
+            train_members(config, &share, stop, &mut |k, r| report((first + k, *r)))
+        },
+        &mut |(k, r)| on_epoch(k, &r),
+    )
+}
+
+/// The training loop of some runs of one mode that start at the same epoch, in one stack.
+fn train_members(
     config: &Config,
     members: &[(&TrainRun, Start)],
     stop: &AtomicBool,

@@ -74,7 +74,8 @@ impl StackedNet {
     pub fn forward(&self, obs: &Tensor) -> Tensor {
         let mut x = obs.to_kind(Kind::Float) * &self.scale;
         for (w, b) in &self.layers[..2] {
-            x = b.baddbmm(&x, w, 1.0, 1.0).leaky_relu();
+            x = b.baddbmm(&x, w, 1.0, 1.0);
+            let _ = x.leaky_relu_(); // in place: autograd keeps one tensor instead of two
         }
         // The single-output layer as a product and a sum: a batched product with one output
         // column takes another kernel whose result depends on the number of members.
