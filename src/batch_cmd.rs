@@ -204,9 +204,11 @@ pub fn batch(args: BatchArgs) -> Result<ExitCode> {
     }
     let routes = routes.iter().map(abs).collect::<Result<Vec<_>>>()?;
     let todo = combos(&routes, &args.controllers, &args.seeds, shard);
-    let jobs = args
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let jobs = match args.jobs {
+        Some(0) => return Err(crate::usage("--jobs must be at least 1")),
+        Some(n) => n,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
     let settings = BatchSettings {
         exe: std::env::current_exe().context("locating the mpgdrive binary")?,
         common_args: common,

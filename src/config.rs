@@ -378,11 +378,21 @@ impl Config {
             p.strata[0] >= 1 && p.strata[1] >= 1,
             "both counts must be at least 1".into(),
         )?;
-        check(
-            "train.init_candidates",
-            self.train.init_candidates >= 1,
-            "must be at least 1".into(),
-        )?;
+        let t = &self.train;
+        for (key, n) in [
+            ("train.hidden", t.hidden),
+            ("train.epochs", t.epochs),
+            ("train.batch", t.batch),
+            ("train.probe_scenarios", t.probe_scenarios),
+            ("train.checkpoint_every", t.checkpoint_every),
+            ("train.threads", t.threads),
+            ("train.init_candidates", t.init_candidates),
+        ] {
+            check(key, n >= 1, "must be at least 1".into())?;
+        }
+        positive("train.learning_rate", t.learning_rate)?;
+        positive("train.learning_rate_final", t.learning_rate_final)?;
+        positive("train.grad_clip", t.grad_clip)?;
         check(
             "train.screen_epochs",
             self.train.init_candidates == 1 || (1..=self.train.epochs).contains(&self.train.screen_epochs),

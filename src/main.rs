@@ -231,6 +231,10 @@ fn main() -> ExitCode {
                 || e.downcast_ref::<mpgdrive::ngsim::load::NgsimError>().is_some()
                 || e.downcast_ref::<mpgdrive::ngsim::smooth::SmoothError>().is_some()
                 || matches!(
+                    e.downcast_ref::<TrainError>(),
+                    Some(TrainError::ForeignCheckpoint { .. })
+                )
+                || matches!(
                     e.downcast_ref::<EvalError>(),
                     Some(EvalError::Policy(_) | EvalError::NoPolicy(_) | EvalError::NeedNePolicy { .. })
                 );
@@ -308,6 +312,18 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     command: command.clone(),
                 })
                 .collect();
+            if resume {
+                for run in &runs {
+                    let ckpt = mpgdrive::train::checkpoint_path(&run.out);
+                    if !mpgdrive::policy::file::paths(&ckpt).1.exists() {
+                        eprintln!(
+                            "seed {}: no checkpoint {}.json to resume; it trains from the start",
+                            run.seed,
+                            ckpt.display()
+                        );
+                    }
+                }
+            }
             let bar = indicatif::ProgressBar::new(config.train.epochs as u64).with_style(
                 indicatif::ProgressStyle::with_template(
                     "{prefix} {bar:30} epoch {pos}/{len} {msg} ETA {eta}",

@@ -70,6 +70,19 @@ fn summary(dir: &Path) -> String {
 }
 
 #[test]
+fn zero_jobs_is_refused_before_any_output() {
+    let routes = route_files("zero-jobs-routes");
+    let out = fresh("zero-jobs");
+    let o = run(batch(&routes, &out, &["--jobs", "0"]));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--jobs must be at least 1"));
+    assert!(
+        std::fs::read_dir(&out).unwrap().next().is_none(),
+        "nothing written"
+    );
+}
+
+#[test]
 fn a_small_batch_runs_every_combination_and_summarises_them() {
     let routes = route_files("small-routes");
     let out = fresh("small");

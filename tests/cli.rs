@@ -58,6 +58,71 @@ fn negative_time_step_is_rejected_by_key() {
 }
 
 #[test]
+fn training_settings_that_would_panic_or_give_nan_are_rejected_by_key() {
+    // Each of these used to panic (a zero checkpoint period or batch), give NaN curves (no
+    // probe states) or train nonsense; every one is refused before any work, by its key.
+    for (key, line) in [
+        ("train.checkpoint_every", "checkpoint_every = 0"),
+        ("train.batch", "batch = 0"),
+        ("train.probe_scenarios", "probe_scenarios = 0"),
+        ("train.hidden", "hidden = 0"),
+        ("train.epochs", "epochs = 0"),
+        ("train.threads", "threads = 0"),
+        ("train.learning_rate", "learning_rate = -0.001"),
+        ("train.learning_rate_final", "learning_rate_final = nan"),
+        ("train.grad_clip", "grad_clip = 0.0"),
+    ] {
+        let name = key.split('.').nth(1).unwrap();
+        let text = smoke_text();
+        let start = text.find(&format!("\n{name} =")).expect(name) + 1;
+        let end = start + text[start..].find('\n').unwrap();
+        let text = format!("{}{line}{}", &text[..start], &text[end..]);
+        assert_rejected(&run_with(name, &text), key);
+    }
+}
+
+#[test]
+fn resume_says_when_there_is_no_checkpoint_and_refuses_a_foreign_one() {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-resume-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let config = temp_config("resume", &smoke_text().replace("epochs = 15 ", "epochs = 2 "));
+    let train = |config: &Path| {
+        bin()
+            .args(["train", "--seeds", "0", "--resume", "--config"])
+            .arg(config)
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .unwrap()
+    };
+    let out = train(&config);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("no checkpoint") && stderr.contains("trains from the start"),
+        "{stderr}"
+    );
+    // A checkpoint of this run, resumed under another learning rate: refused as bad input.
+    for ext in ["json", "safetensors"] {
+        std::fs::copy(
+            dir.join(format!("seed0.{ext}")),
+            dir.join(format!("seed0.ckpt.{ext}")),
+        )
+        .unwrap();
+    }
+    let other = temp_config(
+        "resume-other",
+        &smoke_text()
+            .replace("epochs = 15 ", "epochs = 2 ")
+            .replace("learning_rate = 0.01 ", "learning_rate = 0.02 "),
+    );
+    let out = train(&other);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("made by another run"), "{stderr}");
+}
+
+#[test]
 fn conflict_point_outside_the_road_is_rejected() {
     let text = smoke_text().replace("conflict_point = 180.0", "conflict_point = 450.0");
     assert_rejected(&run_with("outside", &text), "scenario.conflict_point");
