@@ -28,8 +28,10 @@ use crate::sim::rollout::{Actor, Driver, driver_accel, neighbor_of};
 use crate::sim::safety::Neighbor;
 use crate::sim::state::Scene;
 
-/// Observation layout version, stored with policy files.
-pub const OBS_LAYOUT_VERSION: u32 = 1;
+/// Observation layout version, stored with policy files; a file of another version is refused.
+/// Version 2 caps a present neighbour's distance at [`MISSING_DISTANCE`] (version 1 did not).
+/// `observation_of_version_2_is_pinned` fails when the features change: bump this with them.
+pub const OBS_LAYOUT_VERSION: u32 = 2;
 /// Number of features before the one-hot agent index.
 pub const N_FEATURES: usize = 9;
 /// Distance reported for a missing neighbour, and the largest reported for a present one (m).
@@ -254,6 +256,45 @@ mod tests {
             phi: 0.0,
             on_ramp,
         }
+    }
+
+    #[test]
+    fn observation_of_version_2_is_pinned() {
+        // Hand-computed Table I observations of a scene with a near and a far neighbour, a
+        // missing one, both lanes, and the network's input scales. A change here changes
+        // what a trained policy sees: bump OBS_LAYOUT_VERSION and update this test.
+        assert_eq!(OBS_LAYOUT_VERSION, 2);
+        assert_eq!((N_FEATURES, MISSING_DISTANCE), (9, 100.0));
+        let scene = Scene {
+            vehicles: vec![
+                car(150.0, 10.0, true),
+                car(170.0, 12.0, false),
+                car(20.0, 14.0, false),
+            ],
+        };
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&scene, &mut order, &mut nb);
+        let mut rows = Vec::new();
+        for i in 0..3 {
+            let mut out = vec![0.0f32; obs_dim(3)];
+            observe(180.0, &scene, i, &nb[i], &mut out);
+            rows.push(out);
+        }
+        let expected: [[f32; 12]; 3] = [
+            // ego on the ramp: leader 20 m ahead at +2 m/s, follower 130 m back (capped).
+            [30.0, 10.0, 20.0, 2.0, 1.0, 100.0, 4.0, 1.0, 1.0, 1.0, 0.0, 0.0],
+            // front car: no leader, the ego 20 m behind at -2 m/s.
+            [10.0, 12.0, 100.0, 0.0, 0.0, 20.0, -2.0, 1.0, 0.0, 0.0, 1.0, 0.0],
+            // rear car: the ego 130 m ahead (capped) at -4 m/s, no follower.
+            [160.0, 14.0, 100.0, -4.0, 1.0, 100.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        ];
+        for (row, e) in rows.iter().zip(expected) {
+            assert_eq!(row.as_slice(), e.as_slice());
+        }
+        assert_eq!(
+            crate::policy::network::OBS_SCALE,
+            [0.01, 1.0 / 30.0, 0.01, 0.1, 1.0, 0.01, 0.1, 1.0, 1.0]
+        );
     }
 
     #[test]
