@@ -133,7 +133,7 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
             ControllerArg::Sumo => (ControllerKind::Sumo, None),
         };
         let net = match policy {
-            Some(p) => Some(crate::pick_policy(p, args.policy_seed, config.n_agents())?),
+            Some(p) => Some(crate::pick_policy(p, args.policy_seed, &config)?),
             None => None,
         };
         match run_controller(&config, &settings, kind, net) {

@@ -4,7 +4,7 @@
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use mpgdrive::config::{Config, ConfigError};
-use mpgdrive::eval::study::{EvalError, Surrounding, evaluate, load_policies};
+use mpgdrive::eval::study::{EvalError, Rules, Surrounding, evaluate, load_policies};
 use mpgdrive::eval::{EpisodeMetrics, Summary};
 use mpgdrive::game::PaperReward;
 use mpgdrive::game::mpg_check::{CheckSettings, check_mpg, evaluations};
@@ -128,6 +128,10 @@ enum Command {
         /// Print JSON instead of Markdown.
         #[arg(long)]
         json: bool,
+        /// Evaluate policies trained under other world rules than --config's (dt, limits,
+        /// geometry, feasibility and gate rules, desired speed), with a warning: an ablation.
+        #[arg(long)]
+        allow_policy_mismatch: bool,
     },
     /// Check Definition 3 numerically: Delta J_i against Delta Phi for unilateral deviations.
     CheckMpg {
@@ -194,8 +198,8 @@ fn print(text: &str) -> Result<()> {
 }
 
 /// One policy from a file or a directory of seeds: `seed`, or else the lowest seed.
-fn pick_policy(path: &Path, seed: Option<u64>, n_agents: usize) -> Result<mpgdrive::policy::PolicyNet> {
-    let mut policies = load_policies(path, n_agents)?;
+fn pick_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<mpgdrive::policy::PolicyNet> {
+    let mut policies = load_policies(path, config, Rules::Same)?;
     policies.sort_by_key(|(_, side)| side.seed);
     let index = match seed {
         None => 0,
@@ -386,11 +390,18 @@ fn run(cli: Cli) -> Result<ExitCode> {
             surrounding,
             episodes,
             json,
+            allow_policy_mismatch,
         } => {
             let (config, _, threads) = load(&common)?;
-            let policies = load_policies(&policy, config.n_agents())?;
+            let rules = if allow_policy_mismatch {
+                eprintln!("warning: --allow-policy-mismatch: the policies' world rules are not checked");
+                Rules::Any
+            } else {
+                Rules::Same
+            };
+            let policies = load_policies(&policy, &config, rules)?;
             let ne_policies = match &ne_policy {
-                Some(path) => load_policies(path, config.n_agents())?,
+                Some(path) => load_policies(path, &config, rules)?,
                 None => Vec::new(),
             };
             let kinds: Vec<_> = surrounding

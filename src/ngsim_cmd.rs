@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
-use mpgdrive::eval::study::load_policies;
+use mpgdrive::eval::study::{Rules, load_policies};
 use mpgdrive::ngsim::config::NgsimConfig;
 use mpgdrive::ngsim::load::load;
 use mpgdrive::ngsim::process::{Prepared, prepare};
@@ -134,8 +134,8 @@ pub fn run(args: NgsimArgs) -> Result<ExitCode> {
             let config = Config::load(&config)?;
             // One observation per step: one libtorch thread avoids pool overhead.
             tch::set_num_threads(1);
-            let mut mpg = load_policies(&policies.policy, config.n_agents())?;
-            let mut sarl = load_policies(&policies.sarl_policy, config.n_agents())?;
+            let mut mpg = load_policies(&policies.policy, &config, Rules::Same)?;
+            let mut sarl = load_policies(&policies.sarl_policy, &config, Rules::Same)?;
             let (ngsim, prepared) = load_prepared(&input)?;
             let s = &config.scenario;
             let extraction = extract(&prepared, &ngsim, s.n_leaders, s.n_followers);

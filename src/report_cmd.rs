@@ -6,7 +6,7 @@ use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
 use mpgdrive::eval::EpisodeMetrics;
-use mpgdrive::eval::study::{Study, Surrounding, evaluate, load_policies};
+use mpgdrive::eval::study::{Rules, Study, Surrounding, evaluate, load_policies};
 use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::render::charts::{Panel, Series, mean_band, panels_png};
 use mpgdrive::render::episode::render_episode;
@@ -47,7 +47,7 @@ pub fn scenario(
     seed: Option<u64>,
     out: &Path,
 ) -> Result<(Vec<PathBuf>, String)> {
-    let net = crate::pick_policy(policy, seed, config.n_agents())?;
+    let net = crate::pick_policy(policy, seed, config)?;
     let scene = preset.scene(config);
     let outcome = policy_rollout(config, &net, Others::SameNetwork, &[scene], 1, Recording::Full)?
         .pop()
@@ -211,8 +211,8 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
             )));
         }
     }
-    let mpg = load_policies(&args.policies.policy, config.n_agents())?;
-    let sarl = load_policies(&args.policies.sarl_policy, config.n_agents())?;
+    let mpg = load_policies(&args.policies.policy, &config, Rules::Same)?;
+    let sarl = load_policies(&args.policies.sarl_policy, &config, Rules::Same)?;
     let figures = args.out.join("figures");
     std::fs::create_dir_all(&figures).with_context(|| format!("creating {}", figures.display()))?;
     let command: Vec<String> = std::env::args().collect();

@@ -123,6 +123,58 @@ fn resume_says_when_there_is_no_checkpoint_and_refuses_a_foreign_one() {
 }
 
 #[test]
+fn a_policy_trained_under_other_world_rules_is_refused_by_setting() {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-rules-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let tiny = smoke_text().replace("epochs = 15 ", "epochs = 1 ");
+    let out = bin()
+        .args(["train", "--seeds", "0", "--config"])
+        .arg(temp_config("rules", &tiny))
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let eval = |name: &str, text: String, extra: &[&str]| {
+        bin()
+            .args(["eval", "--surrounding", "idm", "--config"])
+            .arg(temp_config(name, &text))
+            .arg("--policy")
+            .arg(&dir)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    // Another step, another conflict point, the gate off: each named.
+    for (key, from, to) in [
+        ("sim.dt", "dt = 0.1 ", "dt = 0.05 "),
+        (
+            "scenario.conflict_point",
+            "conflict_point = 180.0 ",
+            "conflict_point = 200.0 ",
+        ),
+        ("sim.merge_gate", "merge_gate = true ", "merge_gate = false "),
+    ] {
+        assert!(tiny.contains(from), "{from}");
+        assert_rejected(&eval("rules-other", tiny.replace(from, to), &[]), key);
+    }
+    // The same rules (other training settings) pass; an explicit ablation passes with a warning.
+    let out = eval(
+        "rules-same",
+        tiny.replace("learning_rate = 0.01 ", "learning_rate = 0.02 "),
+        &[],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = eval(
+        "rules-ablation",
+        tiny.replace("merge_gate = true ", "merge_gate = false "),
+        &["--allow-policy-mismatch"],
+    );
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("warning: --allow-policy-mismatch"));
+}
+
+#[test]
 fn conflict_point_outside_the_road_is_rejected() {
     let text = smoke_text().replace("conflict_point = 180.0", "conflict_point = 450.0");
     assert_rejected(&run_with("outside", &text), "scenario.conflict_point");

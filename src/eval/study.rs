@@ -68,10 +68,33 @@ pub enum EvalError {
     Torch(#[from] tch::TchError),
 }
 
-/// Loads a policy file, or every policy of a directory (checkpoints excluded), sorted by seed.
-pub fn load_policies(path: &Path, n_agents: usize) -> Result<Vec<(PolicyNet, Sidecar)>, EvalError> {
+/// Which policies a run accepts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rules {
+    /// Only policies trained under the run's world rules ([`file::check_rules`]).
+    Same,
+    /// Any policy of the run's player count (an ablation: the caller warns).
+    Any,
+}
+
+/// Loads a policy file, or every policy of a directory (checkpoints excluded), sorted by seed,
+/// for a run of `config` (its player count, and its world rules unless `rules` is
+/// [`Rules::Any`]).
+pub fn load_policies(
+    path: &Path,
+    config: &Config,
+    rules: Rules,
+) -> Result<Vec<(PolicyNet, Sidecar)>, EvalError> {
+    let n_agents = config.n_agents();
+    let load = |p: &Path| -> Result<(PolicyNet, Sidecar), EvalError> {
+        let (net, side) = file::load(p, n_agents)?;
+        if rules == Rules::Same {
+            file::check_rules(p, &side, config)?;
+        }
+        Ok((net, side))
+    };
     if !path.is_dir() {
-        return Ok(vec![file::load(path, n_agents)?]);
+        return Ok(vec![load(path)?]);
     }
     let entries = std::fs::read_dir(path).map_err(|source| EvalError::List {
         path: path.into(),
@@ -84,10 +107,7 @@ pub fn load_policies(path: &Path, n_agents: usize) -> Result<Vec<(PolicyNet, Sid
         })
         .collect();
     sidecars.sort();
-    let mut policies = sidecars
-        .iter()
-        .map(|p| file::load(p, n_agents))
-        .collect::<Result<Vec<_>, _>>()?;
+    let mut policies = sidecars.iter().map(|p| load(p)).collect::<Result<Vec<_>, _>>()?;
     if policies.is_empty() {
         return Err(EvalError::NoPolicy(path.into()));
     }

@@ -89,6 +89,47 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
     (with_suffix(&stem, ".safetensors"), with_suffix(&stem, ".json"))
 }
 
+/// The world rules a trained policy's behaviour rests on, by configuration key: the step, the
+/// limits, the vehicle box, the geometry and the feasibility rules (flags as 0 or 1).
+fn world_rules(c: &Config) -> [(&'static str, f64); 14] {
+    let flag = |b: bool| if b { 1.0 } else { 0.0 };
+    [
+        ("sim.dt", c.sim.dt),
+        ("vehicle.max_accel", c.vehicle.max_accel),
+        ("vehicle.v_min", c.vehicle.v_min),
+        ("vehicle.v_max", c.vehicle.v_max),
+        ("vehicle.length", c.vehicle.length),
+        ("vehicle.width", c.vehicle.width),
+        ("scenario.conflict_point", c.scenario.conflict_point),
+        ("scenario.lane_width", c.scenario.lane_width),
+        ("sim.feasibility", flag(c.sim.feasibility)),
+        ("sim.tau_s", c.sim.tau_s),
+        ("sim.safety_gap", c.sim.safety_gap),
+        ("sim.merge_gate", flag(c.sim.merge_gate)),
+        ("sim.b_safe", c.sim.b_safe),
+        ("reward.v_desired", c.reward.v_desired),
+    ]
+}
+
+/// Refuses a policy (`path`, its sidecar) trained under other world rules than `run`'s,
+/// naming the first setting that differs.
+pub fn check_rules(path: &Path, sidecar: &Sidecar, run: &Config) -> Result<(), PolicyError> {
+    let trained = world_rules(&sidecar.config);
+    match trained.iter().zip(world_rules(run)).find(|(a, b)| a.1 != b.1) {
+        None => Ok(()),
+        Some(((key, was), (_, now))) => Err(PolicyError::Mismatch {
+            path: path.to_path_buf(),
+            message: format!(
+                "trained with {key} = {was}, this run's configuration has {now}; use the configuration it was trained with{}",
+                ALLOW_HINT
+            ),
+        }),
+    }
+}
+
+/// How to use a policy under other rules anyway (the commands that allow it).
+const ALLOW_HINT: &str = " (eval --allow-policy-mismatch evaluates it anyway)";
+
 fn io(path: &Path) -> impl FnOnce(std::io::Error) -> PolicyError + '_ {
     move |source| PolicyError::Io {
         path: path.to_path_buf(),
