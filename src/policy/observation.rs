@@ -275,9 +275,9 @@ mod tests {
         let (mut order, mut nb) = (Vec::new(), Vec::new());
         find_neighbors(&scene, &mut order, &mut nb);
         let mut rows = Vec::new();
-        for i in 0..3 {
+        for (i, neighbors) in nb.iter().enumerate() {
             let mut out = vec![0.0f32; obs_dim(3)];
-            observe(180.0, &scene, i, &nb[i], &mut out);
+            observe(180.0, &scene, i, neighbors, &mut out);
             rows.push(out);
         }
         let expected: [[f32; 12]; 3] = [
