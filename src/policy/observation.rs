@@ -258,6 +258,20 @@ mod tests {
         }
     }
 
+    /// Every vehicle's observation of a scene of three (x_c = 180 m).
+    fn observations(vehicles: Vec<Vehicle>) -> Vec<Vec<f32>> {
+        let scene = Scene { vehicles };
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&scene, &mut order, &mut nb);
+        (0..scene.len())
+            .map(|i| {
+                let mut out = vec![0.0f32; obs_dim(3)];
+                observe(180.0, &scene, i, &nb[i], &mut out);
+                out
+            })
+            .collect()
+    }
+
     #[test]
     fn observation_of_version_2_is_pinned() {
         // Hand-computed Table I observations of a scene with a near and a far neighbour, a
@@ -265,21 +279,11 @@ mod tests {
         // what a trained policy sees: bump OBS_LAYOUT_VERSION and update this test.
         assert_eq!(OBS_LAYOUT_VERSION, 2);
         assert_eq!((N_FEATURES, MISSING_DISTANCE), (9, 100.0));
-        let scene = Scene {
-            vehicles: vec![
-                car(150.0, 10.0, true),
-                car(170.0, 12.0, false),
-                car(20.0, 14.0, false),
-            ],
-        };
-        let (mut order, mut nb) = (Vec::new(), Vec::new());
-        find_neighbors(&scene, &mut order, &mut nb);
-        let mut rows = Vec::new();
-        for (i, neighbors) in nb.iter().enumerate() {
-            let mut out = vec![0.0f32; obs_dim(3)];
-            observe(180.0, &scene, i, neighbors, &mut out);
-            rows.push(out);
-        }
+        let rows = observations(vec![
+            car(150.0, 10.0, true),
+            car(170.0, 12.0, false),
+            car(20.0, 14.0, false),
+        ]);
         let expected: [[f32; 12]; 3] = [
             // ego on the ramp: leader 20 m ahead at +2 m/s, follower 130 m back (capped).
             [30.0, 10.0, 20.0, 2.0, 1.0, 100.0, 4.0, 1.0, 1.0, 1.0, 0.0, 0.0],
@@ -302,24 +306,18 @@ mod tests {
         // A stopped ramp ego at 179.9 m, its nearest player ahead 250 m away at 13 m/s and
         // one 40 m behind at 12 m/s: the leader reads 100 m away, still present, with its
         // relative speed.
-        let scene = Scene {
-            vehicles: vec![
-                car(179.9, 0.0, true),
-                car(429.9, 13.0, false),
-                car(139.9, 12.0, false),
-            ],
-        };
-        let (mut order, mut nb) = (Vec::new(), Vec::new());
-        find_neighbors(&scene, &mut order, &mut nb);
-        let mut out = vec![0.0f32; obs_dim(3)];
-        observe(180.0, &scene, 0, &nb[0], &mut out);
+        let rows = observations(vec![
+            car(179.9, 0.0, true),
+            car(429.9, 13.0, false),
+            car(139.9, 12.0, false),
+        ]);
+        let out = &rows[0];
         let expected = [0.1, 0.0, 100.0, 13.0, 1.0, 40.0, 12.0, 1.0, 1.0, 1.0, 0.0, 0.0];
         for (k, (o, e)) in out.iter().zip(expected).enumerate() {
             assert!((f64::from(*o) - e).abs() < 1e-4, "feature {k}: {o} != {e}");
         }
         // The follower sees the ego 40 m ahead; the far leader sees the ego 250 m behind as
         // 100 m, and no leader of its own.
-        observe(180.0, &scene, 1, &nb[1], &mut out);
-        assert_eq!(&out[2..8], &[100.0, 0.0, 0.0, 100.0, -13.0, 1.0]);
+        assert_eq!(&rows[1][2..8], &[100.0, 0.0, 0.0, 100.0, -13.0, 1.0]);
     }
 }
