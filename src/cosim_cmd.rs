@@ -59,6 +59,9 @@ pub struct CosimArgs {
     /// Print microseconds per step: SUMO's step and the controller's own work.
     #[arg(long)]
     bench: bool,
+    /// Skip the time-space diagrams (timespace_<controller>.png in --out).
+    #[arg(long)]
+    no_diagrams: bool,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -124,6 +127,7 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
             (false, None) => Launch::Libsumo,
         },
         out: args.out.clone(),
+        timespace: !args.no_diagrams,
     };
     let mut runs = Vec::new();
     for c in &args.controllers {
@@ -201,5 +205,48 @@ fn write_outputs(out: &std::path::Path, runs: &[mpgdrive::sumo::cosim::Controlle
     )?;
     atomic::write(&out.join("cosim.json"), serde_json::to_string_pretty(runs)?)?;
     atomic::write(&out.join("egos.csv"), cosim::egos_csv(runs))?;
+    write_diagrams(out, runs)?;
+    Ok(())
+}
+
+/// `timespace_<controller>.png` for every run that recorded one, all on one scale.
+#[cfg(feature = "sumo")]
+fn write_diagrams(out: &std::path::Path, runs: &[mpgdrive::sumo::cosim::ControllerRun]) -> Result<()> {
+    use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
+    use mpgdrive::sumo::controller::ControllerKind;
+    let started = std::time::Instant::now();
+    let recorded: Vec<_> = runs
+        .iter()
+        .filter_map(|r| r.timespace.as_ref().map(|t| (r, t)))
+        .collect();
+    if recorded.is_empty() {
+        return Ok(());
+    }
+    let all: Vec<_> = recorded.iter().map(|(_, t)| *t).collect();
+    let layout = DiagramLayout::fit(&all, (1600, 900));
+    for (run, ts) in &recorded {
+        let name = run.controller.name();
+        let title = format!(
+            "Time-space diagram: {name} controller, SUMO seed {}, {:.0} s",
+            run.seed, run.simulated
+        );
+        let marked = match run.controller {
+            ControllerKind::Sumo => "tracked ego (SUMO drives it)",
+            ControllerKind::Sarl => "driven by the single-agent policy",
+            ControllerKind::Mpg => "driven by the MPG policy",
+        };
+        timespace_png(
+            &out.join(format!("timespace_{name}.png")),
+            &layout,
+            ts,
+            &title,
+            marked,
+        )?;
+    }
+    eprintln!(
+        "cosim: {} time-space diagrams in {:.2} s",
+        recorded.len(),
+        started.elapsed().as_secs_f64()
+    );
     Ok(())
 }

@@ -83,11 +83,11 @@ pub struct BatchSettings {
     pub timeout: Option<Duration>,
 }
 
-/// Demand scales of route files, from the `manifest.json` beside them.
-fn demand_of(
+/// A route file's entry in the `manifest.json` beside it.
+fn manifest_entry(
     route: &Path,
     cache: &mut HashMap<PathBuf, Vec<crate::batch::routes::ManifestEntry>>,
-) -> Option<f64> {
+) -> Option<crate::batch::routes::ManifestEntry> {
     let dir = route.parent()?.to_path_buf();
     let entries = cache.entry(dir.clone()).or_insert_with(|| {
         std::fs::read_to_string(dir.join("manifest.json"))
@@ -96,7 +96,7 @@ fn demand_of(
             .unwrap_or_default()
     });
     let name = route.file_name()?.to_str()?;
-    entries.iter().find(|e| e.file == name).map(|e| e.scale)
+    entries.iter().find(|e| e.file == name).cloned()
 }
 
 /// The metrics of a worker's `cosim --json` output (one controller).
@@ -125,6 +125,13 @@ fn metrics_of(stdout: &str) -> Result<RunMetrics, String> {
         sumo_collisions: r["collisions"].as_array().map_or(0, Vec::len),
         mean_time_loss: r["mean_time_loss"].as_f64(),
         vehicle_seconds: num(&r["vehicle_seconds"])?,
+        ssm_conflict_egos: r["egos"].as_array().map(|egos| {
+            egos.iter()
+                .filter(|e| {
+                    e["finished"] == true && (e["ssm_min_ttc"].is_number() || e["ssm_max_drac"].is_number())
+                })
+                .count()
+        }),
     })
 }
 
@@ -254,9 +261,11 @@ pub fn run_batch(
             if stop.load(Ordering::SeqCst) {
                 continue; // a worker that died of the stop is not a failed run
             }
+            let entry = manifest_entry(&r.combo.route, &mut manifests);
             let result = RunResult {
                 key: key.clone(),
-                demand: demand_of(&r.combo.route, &mut manifests),
+                demand: entry.as_ref().map(|e| e.scale),
+                controllable_share: entry.and_then(|e| e.controllable_share),
                 route_file: r.combo.route.clone(),
                 controller: r.combo.controller.clone(),
                 seed: r.combo.seed,
@@ -275,6 +284,7 @@ pub fn run_batch(
     }
     let results = read_results(&settings.out)?;
     write_summary(&results, &settings.out)?;
+    crate::batch::plots::batch_plots(&results, &settings.out).map_err(std::io::Error::other)?;
     Ok(BatchEnd::Done {
         failed: results.iter().filter(|r| r.status != "ok").count(),
     })

@@ -30,6 +30,18 @@ pub struct RunMetrics {
     pub mean_time_loss: Option<f64>,
     /// Vehicle-seconds simulated (every vehicle's time in the network).
     pub vehicle_seconds: f64,
+    /// Finished egos with an SSM conflict (TTC < 3 s or DRAC > 3 m/s^2; none in result files
+    /// written before it was recorded).
+    #[serde(default)]
+    pub ssm_conflict_egos: Option<usize>,
+}
+
+impl RunMetrics {
+    /// Share of finished egos with an SSM conflict, when recorded and any ego finished.
+    pub fn conflict_share(&self) -> Option<f64> {
+        let n = self.ssm_conflict_egos?;
+        (self.egos > 0).then(|| n as f64 / self.egos as f64)
+    }
 }
 
 /// One run's result file.
@@ -41,6 +53,9 @@ pub struct RunResult {
     pub route_file: PathBuf,
     /// Demand scale from the route directory's manifest, if listed there.
     pub demand: Option<f64>,
+    /// Controllable share from the route directory's manifest, if it set one.
+    #[serde(default)]
+    pub controllable_share: Option<f64>,
     /// Controller (mpg, sarl, sumo).
     pub controller: String,
     /// SUMO seed.
@@ -96,7 +111,8 @@ pub fn read_results(dir: &Path) -> std::io::Result<Vec<RunResult>> {
     Ok(out)
 }
 
-fn mean_sd(xs: &[f64]) -> (f64, f64) {
+/// Mean and sample standard deviation (0 for a single value).
+pub(crate) fn mean_sd(xs: &[f64]) -> (f64, f64) {
     let n = xs.len() as f64;
     let mean = xs.iter().sum::<f64>() / n;
     let var = if xs.len() > 1 {
@@ -122,7 +138,7 @@ pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
     }
     // Per-run values; `None` where a run has no finished ego (or no finished trip).
     type Field = (&'static str, fn(&RunMetrics) -> Option<f64>);
-    let fields: [Field; 6] = [
+    let fields: [Field; 7] = [
         ("collision_rate", |m| {
             (m.egos > 0).then(|| m.collisions as f64 / m.egos as f64)
         }),
@@ -133,6 +149,7 @@ pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
         ("mean_abs_accel", |m| (m.egos > 0).then_some(m.mean_abs_accel)),
         ("mean_abs_jerk", |m| (m.egos > 0).then_some(m.mean_abs_jerk)),
         ("mean_time_loss", |m| m.mean_time_loss),
+        ("ssm_conflict_share", RunMetrics::conflict_share),
     ];
     let mut csv = String::from("controller,demand,runs,egos,sumo_collisions");
     for (name, _) in &fields {
@@ -206,5 +223,6 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<Vec<RunResult>, String> {
         atomic::write(&runs.join(format!("{}.json", r.key)), json).map_err(|e| e.to_string())?;
     }
     write_summary(&results, out).map_err(|e| format!("{}: {e}", out.display()))?;
+    crate::batch::plots::batch_plots(&results, out).map_err(|e| e.to_string())?;
     Ok(results)
 }

@@ -5,6 +5,7 @@
 pub mod charts;
 pub mod episode;
 pub mod scene;
+pub mod timespace;
 
 use std::sync::Once;
 

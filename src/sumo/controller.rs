@@ -52,6 +52,7 @@
 use crate::config::Config;
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::{BatchPolicy, obs_dim, observe_as};
+use crate::render::timespace::{Road, Sample, TimeSpace};
 use crate::sim::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::sim::rollout::{EgoStats, applied_action};
 use crate::sim::state::{Scene, Vehicle};
@@ -216,6 +217,8 @@ pub struct Controller {
     lane_change_requested: HashSet<String>,
     timing: ControllerTiming,
     order: Vec<usize>,
+    /// The time-space record, when asked for.
+    timespace: Option<TimeSpace>,
 }
 
 impl Controller {
@@ -248,7 +251,21 @@ impl Controller {
             lane_change_requested: HashSet::new(),
             timing: ControllerTiming::default(),
             order: Vec::new(),
+            timespace: None,
         }
+    }
+
+    /// Records every ramp and target-lane vehicle at every step from now on, for a
+    /// time-space diagram: its distance to the conflict point, its speed (the model speed of
+    /// a driven vehicle), and whether the controller drives it (for `sumo`, whether it is a
+    /// tracked ego). Collisions are marked at the colliding vehicle.
+    pub fn record_timespace(&mut self) {
+        self.timespace = Some(TimeSpace::new(self.dt));
+    }
+
+    /// The time-space record so far (empty unless [`Controller::record_timespace`] was called).
+    pub fn take_timespace(&mut self) -> Option<TimeSpace> {
+        self.timespace.take()
     }
 
     /// Controller time so far.
@@ -260,6 +277,7 @@ impl Controller {
     pub fn step(&mut self, sumo: &mut Sumo) -> Result<(), SumoError> {
         let started = Instant::now();
         let time = sumo.time()?;
+        let known_collisions = self.collisions.len();
         self.note_collisions(sumo, time)?;
         let teleporting = sumo.teleporting()?;
         let gone: HashSet<String> = sumo
@@ -307,6 +325,14 @@ impl Controller {
         }
         self.applied = applied;
         self.lane_change_requested = requested;
+        if self.timespace.is_some() {
+            let marked: HashSet<&str> = if self.kind == ControllerKind::Sumo {
+                games.iter().map(|g| cars[g.members[0].0].id.as_str()).collect()
+            } else {
+                driven.iter().map(String::as_str).collect()
+            };
+            self.record_step(time, &cars, &marked, known_collisions);
+        }
         let released: Vec<String> = self.controlled.difference(&driven).cloned().collect();
         for id in released {
             self.controlled.remove(&id);
@@ -321,6 +347,33 @@ impl Controller {
         self.timing.steps += 1;
         self.timing.total_us += started.elapsed().as_secs_f64() * 1e6;
         Ok(())
+    }
+
+    /// Adds this step's vehicles and new collisions to the time-space record.
+    fn record_step(&mut self, time: f64, cars: &[Car], marked: &HashSet<&str>, known_collisions: usize) {
+        let Some(ts) = self.timespace.as_mut() else {
+            return;
+        };
+        let x_c = self.geometry.conflict_point;
+        for c in cars {
+            let road = if c.ramp_lane.is_some() {
+                Road::Ramp
+            } else {
+                Road::Target
+            };
+            let sample = Sample {
+                t: time,
+                s: c.x - x_c,
+                v: c.v,
+                marked: marked.contains(c.id.as_str()),
+            };
+            ts.record(&c.id, road, sample);
+        }
+        for event in &self.collisions[known_collisions..] {
+            if let Some(mark) = ts.locate(&event.collider, time) {
+                ts.collisions.push(mark);
+            }
+        }
     }
 
     /// Records collisions new this step (a pair overlapping over several steps counts once).

@@ -13,6 +13,7 @@
 use crate::config::Config;
 use crate::eval::metrics::{EpisodeMetrics, Summary};
 use crate::policy::network::PolicyNet;
+use crate::render::timespace::TimeSpace;
 use crate::sumo::controller::{CollisionEvent, ControlModes, Controller, ControllerKind, EgoRecord};
 use crate::sumo::geometry::MergeGeometry;
 use crate::sumo::{Backend, Sumo, SumoError};
@@ -58,6 +59,8 @@ pub struct CosimSettings {
     pub launch: Launch,
     /// Directory for SUMO's tripinfo and SSM outputs (per controller).
     pub out: PathBuf,
+    /// Record each run's time-space diagram ([`ControllerRun::timespace`]).
+    pub timespace: bool,
 }
 
 /// Errors of a co-sim run.
@@ -153,6 +156,9 @@ pub struct ControllerRun {
     pub sumo_us_per_step: f64,
     /// Wall time in the controller (us per step).
     pub controller_us_per_step: f64,
+    /// The run's time-space record, with SUMO's SSM conflicts marked (when asked for).
+    #[serde(skip)]
+    pub timespace: Option<TimeSpace>,
 }
 
 fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path) -> Vec<String> {
@@ -248,6 +254,9 @@ pub fn run_controller(
         policy,
         settings.modes,
     );
+    if settings.timespace {
+        controller.record_timespace();
+    }
     let mut sumo_us = 0.0;
     let mut steps = 0u64;
     while more_to_run(&sumo, settings.end, dt)? {
@@ -262,26 +271,33 @@ pub fn run_controller(
     let timing = controller.timing();
     let collisions = controller.collisions.clone();
     let speed_overrides = controller.overridden;
+    let mut timespace = controller.take_timespace();
     let records = controller.finish();
-    let (ssm_by_ego, trips) = match settings.launch {
+    let (ssm, trips) = match settings.launch {
         // The server owns the outputs of a shared simulation.
-        Launch::Attach { .. } => (HashMap::new(), HashMap::new()),
+        Launch::Attach { .. } => (SsmRecord::default(), HashMap::new()),
         _ => (read_ssm(&ssm)?, read_tripinfo(&tripinfo)?),
     };
+    if let Some(ts) = timespace.as_mut() {
+        let marks: Vec<_> = ssm.worst.iter().filter_map(|(id, t)| ts.locate(id, *t)).collect();
+        ts.conflicts = marks;
+    }
     let per_step = |us: f64| us / steps.max(1) as f64;
-    Ok(summarise(
+    let mut run = summarise(
         kind,
         settings.seed,
         simulated,
         steps,
         &records,
-        &ssm_by_ego,
+        &ssm.extremes,
         &trips,
         collisions,
         speed_overrides,
         per_step(sumo_us),
         per_step(timing.total_us),
-    ))
+    );
+    run.timespace = timespace;
+    Ok(run)
 }
 
 /// SUMO alone on the same configuration, seed and duration, through libsumo with nothing but
@@ -356,6 +372,7 @@ fn summarise(
         speed_overrides,
         sumo_us_per_step,
         controller_us_per_step,
+        timespace: None,
     }
 }
 
@@ -376,23 +393,43 @@ fn parse_xml<'a>(path: &Path, text: &'a str) -> Result<roxmltree::Document<'a>, 
 /// SSM extremes of one vehicle: (minimum TTC in s, maximum DRAC in m/s^2).
 pub type SsmExtremes = (Option<f64>, Option<f64>);
 
-/// Per ego: the smallest minTTC and the largest maxDRAC over its SSM conflicts ("NA" skipped).
-pub fn read_ssm(path: &Path) -> Result<HashMap<String, SsmExtremes>, CosimError> {
+/// What the SSM output says of the equipped vehicles.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SsmRecord {
+    /// Per vehicle: the smallest minTTC and the largest maxDRAC over its conflicts.
+    pub extremes: HashMap<String, SsmExtremes>,
+    /// Per conflict with a measured value: the equipped vehicle and the time of its minTTC
+    /// (of its maxDRAC when it has no TTC), in file order.
+    pub worst: Vec<(String, f64)>,
+}
+
+/// Reads SUMO's SSM output ("NA" values skipped).
+pub fn read_ssm(path: &Path) -> Result<SsmRecord, CosimError> {
     let text = read_xml(path)?;
     let doc = parse_xml(path, &text)?;
-    let mut out: HashMap<String, SsmExtremes> = HashMap::new();
+    let mut out = SsmRecord::default();
     for conflict in doc.descendants().filter(|n| n.has_tag_name("conflict")) {
         let Some(ego) = conflict.attribute("ego") else {
             continue;
         };
-        let entry = out.entry(ego.to_owned()).or_default();
+        let entry = out.extremes.entry(ego.to_owned()).or_default();
+        let (mut ttc_at, mut drac_at) = (None, None);
         for child in conflict.children().filter(|n| n.is_element()) {
-            let value = child.attribute("value").and_then(|v| v.parse::<f64>().ok());
-            match (child.tag_name().name(), value) {
-                ("minTTC", Some(v)) => entry.0 = Some(entry.0.map_or(v, |m| m.min(v))),
-                ("maxDRAC", Some(v)) => entry.1 = Some(entry.1.map_or(v, |m| m.max(v))),
+            let num = |k: &str| child.attribute(k).and_then(|v| v.parse::<f64>().ok());
+            match (child.tag_name().name(), num("value")) {
+                ("minTTC", Some(v)) => {
+                    entry.0 = Some(entry.0.map_or(v, |m| m.min(v)));
+                    ttc_at = num("time");
+                }
+                ("maxDRAC", Some(v)) => {
+                    entry.1 = Some(entry.1.map_or(v, |m| m.max(v)));
+                    drac_at = num("time");
+                }
                 _ => {}
             }
+        }
+        if let Some(t) = ttc_at.or(drac_at) {
+            out.worst.push((ego.to_owned(), t));
         }
     }
     Ok(out)
