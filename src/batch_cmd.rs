@@ -25,9 +25,10 @@ pub struct RoutesArgs {
     /// Share of all vehicles from the ramp (default: the base file's).
     #[arg(long)]
     ramp_share: Option<f64>,
-    /// Share of ramp vehicles that are controllable (default: the base file's).
-    #[arg(long)]
-    controllable_share: Option<f64>,
+    /// Shares of ramp vehicles that are controllable, comma-separated (default: the base
+    /// file's); several shares give one file each (`_c<share>` in the name).
+    #[arg(long, value_delimiter = ',')]
+    controllable_share: Vec<f64>,
     /// Seeds of the arrivals, one route file per seed and scale.
     #[arg(long, value_delimiter = ',', default_value = "0")]
     seeds: Vec<u64>,
@@ -131,7 +132,7 @@ pub fn routes(args: RoutesArgs) -> Result<ExitCode> {
     let spec = DemandSpec {
         scales: parse_scales(&args.scales)?,
         ramp_share: args.ramp_share,
-        controllable_share: args.controllable_share,
+        controllable_shares: args.controllable_share,
         seeds: args.seeds,
         duration: args.duration,
     };
@@ -141,8 +142,13 @@ pub fn routes(args: RoutesArgs) -> Result<ExitCode> {
     })?;
     for m in &manifest {
         crate::print(&format!(
-            "{} (scale {}, seed {}): {} vehicles",
-            m.file, m.scale, m.seed, m.vehicles
+            "{} (scale {}{}, seed {}): {} vehicles",
+            m.file,
+            m.scale,
+            m.controllable_share
+                .map_or(String::new(), |c| format!(", controllable share {c}")),
+            m.seed,
+            m.vehicles
         ))?;
     }
     Ok(ExitCode::SUCCESS)

@@ -127,6 +127,9 @@ pub struct ReportArgs {
     /// A `mpgdrive ngsim eval` output directory to include (skipped when it has no table4.md).
     #[arg(long, default_value = "results/ngsim")]
     ngsim: PathBuf,
+    /// A `mpgdrive batch` (or `merge`) output directory to include: its summary and charts.
+    #[arg(long)]
+    batch: Option<PathBuf>,
     /// Worker threads for the evaluation (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -210,6 +213,12 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
                 dir.display()
             )));
         }
+    }
+    if let Some(dir) = args.batch.as_ref().filter(|d| !d.join("summary.md").is_file()) {
+        return Err(crate::usage(format!(
+            "--batch {}: no summary.md (not a `mpgdrive batch` or `merge` output directory)",
+            dir.display()
+        )));
     }
     let mpg = load_policies(&args.policies.policy, &config, Rules::Same)?;
     let sarl = load_policies(&args.policies.sarl_policy, &config, Rules::Same)?;
@@ -388,31 +397,16 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         "{exe} train --config {cfg} --mode mpg --seeds 0,1,2,3,4 --out policies/mpg\n{exe} train --config {cfg} --mode sarl --seeds 0,1,2,3,4 --out policies/sarl"
     )));
 
-    // Co-simulation and NGSIM, when present.
-    for (dir, file, heading, missing) in [
-        (
-            &args.cosim,
-            "cosim.md",
-            "SUMO co-simulation",
-            "no co-simulation results: run `mpgdrive cosim` (see the README) and pass its --out here with --cosim",
-        ),
-        (
-            &args.ngsim,
-            "table4.md",
-            "NGSIM I-80 replay (Table IV)",
-            "no NGSIM results: run `mpgdrive ngsim eval` on the official I-80 files (see the README) and pass its --out here with --ngsim",
-        ),
-    ] {
-        doc.push(Block::Heading(2, heading.into()));
-        match std::fs::read_to_string(dir.join(file)) {
-            Ok(text) => {
-                doc.push(Block::Text(format!("From `{}`.", dir.join(file).display())));
-                include_markdown(&mut doc, &text);
-            }
-            Err(_) => {
-                doc.push(Block::Text(format!("Not included: {missing}.")));
-            }
-        }
+    // Co-simulation, NGSIM and batch, when present.
+    cosim_section(&mut doc, &args.cosim)?;
+    include_results(
+        &mut doc,
+        "NGSIM I-80 replay (Table IV)",
+        &args.ngsim.join("table4.md"),
+        "no NGSIM results: run `mpgdrive ngsim eval` on the official I-80 files (see the README) and pass its --out here with --ngsim",
+    );
+    if let Some(dir) = &args.batch {
+        batch_section(&mut doc, dir, &figures)?;
     }
     let (md, html) = doc.write(&args.out, title)?;
     crate::print(&marl.markdown())?;
@@ -423,6 +417,71 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         t0.elapsed().as_secs_f64()
     ))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// A heading and a saved Markdown results file, or a line saying why it is not there.
+/// Returns whether the file was included.
+fn include_results(doc: &mut Document, heading: &str, file: &Path, missing: &str) -> bool {
+    doc.push(Block::Heading(2, heading.into()));
+    match std::fs::read_to_string(file) {
+        Ok(text) => {
+            doc.push(Block::Text(format!("From `{}`.", file.display())));
+            include_markdown(doc, &text);
+            true
+        }
+        Err(_) => {
+            doc.push(Block::Text(format!("Not included: {missing}.")));
+            false
+        }
+    }
+}
+
+/// The co-simulation table and the time-space diagram of each controller that has one.
+fn cosim_section(doc: &mut Document, dir: &Path) -> Result<()> {
+    let included = include_results(
+        doc,
+        "SUMO co-simulation",
+        &dir.join("cosim.md"),
+        "no co-simulation results: run `mpgdrive cosim` (see the README) and pass its --out here with --cosim",
+    );
+    if !included {
+        return Ok(());
+    }
+    let diagrams: Vec<PathBuf> = ["mpg", "sarl", "sumo"]
+        .iter()
+        .map(|c| dir.join(format!("timespace_{c}.png")))
+        .filter(|p| p.is_file())
+        .collect();
+    if !diagrams.is_empty() {
+        doc.push(Block::Text(
+            "Time-space diagrams, one per controller on one scale: each vehicle's distance to the conflict point against time, coloured by speed; thick outlined lines are the vehicles the controller drives (for sumo, the same ramp vehicles driven by SUMO); triangles are SSM conflicts, crosses collisions.".into(),
+        ));
+    }
+    for path in diagrams {
+        let name = path
+            .file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        doc.push(Block::Image(path, format!("Time-space diagram ({name})")));
+    }
+    Ok(())
+}
+
+/// The batch summary and its charts (drawn from the run files into `figures`).
+fn batch_section(doc: &mut Document, dir: &Path, figures: &Path) -> Result<()> {
+    include_results(doc, "Batch co-simulation", &dir.join("summary.md"), "");
+    let results = mpgdrive::batch::summary::read_results(dir)
+        .with_context(|| format!("reading {}", dir.join("runs").display()))?;
+    let charts = mpgdrive::batch::plots::batch_plots(&results, figures)?;
+    if charts.is_empty() {
+        doc.push(Block::Text(
+            "No charts: the runs do not sweep the demand or the controllable share (fewer than two levels)."
+                .into(),
+        ));
+    }
+    for (path, caption) in charts {
+        doc.push(Block::Image(path, caption));
+    }
+    Ok(())
 }
 
 fn line(label: &str, points: Vec<(f64, f64)>) -> Series {

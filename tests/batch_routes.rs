@@ -41,7 +41,7 @@ fn demand_scales_shares_and_seeds() {
     let spec = DemandSpec {
         scales: vec![1.0, 2.0],
         ramp_share: Some(0.2),
-        controllable_share: Some(0.5),
+        controllable_shares: vec![0.5],
         seeds: vec![0, 1],
         duration: 3600.0,
     };
@@ -88,7 +88,7 @@ fn out_of_range_shares_are_refused() {
     let spec = DemandSpec {
         scales: vec![1.0],
         ramp_share: Some(1.5),
-        controllable_share: None,
+        controllable_shares: Vec::new(),
         seeds: vec![0],
         duration: 60.0,
     };

@@ -23,8 +23,9 @@ pub struct DemandSpec {
     pub scales: Vec<f64>,
     /// Share of all vehicles that come from the ramp (`None`: as in the base file).
     pub ramp_share: Option<f64>,
-    /// Share of ramp vehicles of a controllable type (`None`: as in the base file).
-    pub controllable_share: Option<f64>,
+    /// Shares of ramp vehicles of a controllable type, one route file each (empty: as in the
+    /// base file). Files of one scale and seed share their arrivals; only the types differ.
+    pub controllable_shares: Vec<f64>,
     /// One route file per seed and scale.
     pub seeds: Vec<u64>,
     /// Departures up to this time (s), within each flow's begin and end.
@@ -195,7 +196,9 @@ fn xml_escape(s: &str) -> String {
         .replace('<', "&lt;")
 }
 
-/// Writes one route file per (scale, seed) and `manifest.json` into `out`.
+/// Writes one route file per (scale, controllable share, seed) and `manifest.json` into
+/// `out`: `<stem>_d<scale>_s<seed>.rou.xml`, with `_c<share>` before `_s` when several shares
+/// are given.
 pub fn generate(
     base_path: &Path,
     geometry: &MergeGeometry,
@@ -203,7 +206,14 @@ pub fn generate(
     out: &Path,
 ) -> Result<Vec<ManifestEntry>, RoutesError> {
     check_share("--ramp-share", spec.ramp_share)?;
-    check_share("--controllable-share", spec.controllable_share)?;
+    for &share in &spec.controllable_shares {
+        check_share("--controllable-share", Some(share))?;
+    }
+    let shares: Vec<Option<f64>> = if spec.controllable_shares.is_empty() {
+        vec![None]
+    } else {
+        spec.controllable_shares.iter().copied().map(Some).collect()
+    };
     if spec.scales.is_empty() || spec.scales.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
         return Err(RoutesError::Invalid(
             "demand scales must be positive numbers".into(),
@@ -244,7 +254,11 @@ pub fn generate(
         .and_then(|n| n.to_str())
         .map_or("routes", |n| n.trim_end_matches(".xml").trim_end_matches(".rou"));
     let mut manifest = Vec::new();
-    for &scale in &spec.scales {
+    for (&scale, &share) in spec
+        .scales
+        .iter()
+        .flat_map(|scale| shares.iter().map(move |share| (scale, share)))
+    {
         for &seed in &spec.seeds {
             let mut vehicles: Vec<(f64, String)> = Vec::new();
             for (k, flow) in base.flows.iter().enumerate() {
@@ -263,7 +277,7 @@ pub fn generate(
                     if t >= end {
                         break;
                     }
-                    let vtype = match (mix, spec.controllable_share) {
+                    let vtype = match (mix, share) {
                         (Some((_, ctrl, other)), Some(share)) => {
                             if rng.random::<f64>() < share {
                                 ctrl.clone()
@@ -291,12 +305,16 @@ pub fn generate(
                 }
             }
             vehicles.sort_by(|a, b| a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1)));
-            let file = format!("{stem}_d{scale:.2}_s{seed}.rou.xml");
+            let swept = match share {
+                Some(c) if shares.len() > 1 => format!("_c{c:.2}"),
+                _ => String::new(),
+            };
+            let file = format!("{stem}_d{scale:.2}{swept}_s{seed}.rou.xml");
             let mut xml = format!(
                 "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, seed {seed}, {} s -->\n<routes>\n",
                 base_path.display(),
                 spec.ramp_share,
-                spec.controllable_share,
+                share,
                 spec.duration
             );
             for v in &base.verbatim {
@@ -313,7 +331,7 @@ pub fn generate(
                 file,
                 scale,
                 ramp_share: spec.ramp_share,
-                controllable_share: spec.controllable_share,
+                controllable_share: share,
                 seed,
                 vehicles: vehicles.len(),
             });

@@ -124,18 +124,20 @@ pub(crate) fn mean_sd(xs: &[f64]) -> (f64, f64) {
 }
 
 /// The summary files: `summary.csv` and `summary.md`, from `results` (ok runs aggregated per
-/// controller and demand level, mean and sample standard deviation over the runs that have a
+/// controller, demand level and controllable share (when the route files set one), mean and sample standard deviation over the runs that have a
 /// value: a run without a finished ego has no rates; failed runs listed).
 pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
-    let mut groups: BTreeMap<(String, String), Vec<&RunMetrics>> = BTreeMap::new();
+    let mut groups: BTreeMap<(String, String, String), Vec<&RunMetrics>> = BTreeMap::new();
     for r in results {
         if let Some(m) = r.metrics.as_ref().filter(|_| r.status == "ok") {
+            let share = r.controllable_share.map_or(String::new(), |c| format!("{c:.2}"));
             groups
-                .entry((r.controller.clone(), r.demand_label()))
+                .entry((r.controller.clone(), r.demand_label(), share))
                 .or_default()
                 .push(m);
         }
     }
+    let shares = groups.keys().any(|k| !k.2.is_empty());
     // Per-run values; `None` where a run has no finished ego (or no finished trip).
     type Field = (&'static str, fn(&RunMetrics) -> Option<f64>);
     let fields: [Field; 7] = [
@@ -155,20 +157,29 @@ pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
     for (name, _) in &fields {
         csv += &format!(",{name}_mean,{name}_sd");
     }
-    csv.push('\n');
-    let mut md = String::from("| Controller | Demand | Runs | Egos | SUMO collisions |");
+    csv += ",controllable_share\n";
+    let mut md = String::from("| Controller | Demand |");
+    if shares {
+        md += " Controllable share |";
+    }
+    md += " Runs | Egos | SUMO collisions |";
     for (name, _) in &fields {
         md += &format!(" {name} (mean ± sd) |");
     }
-    md += &format!("\n|---|---|---|---|---|{}\n", "---|".repeat(fields.len()));
-    for ((controller, demand), ms) in &groups {
+    md += &format!(
+        "\n|---|---|---|---|---|{}{}\n",
+        if shares { "---|" } else { "" },
+        "---|".repeat(fields.len())
+    );
+    for ((controller, demand, share), ms) in &groups {
         let egos: usize = ms.iter().map(|m| m.egos).sum();
         let sumo_collisions: usize = ms.iter().map(|m| m.sumo_collisions).sum();
         csv += &format!("{controller},{demand},{},{egos},{sumo_collisions}", ms.len());
-        md += &format!(
-            "| {controller} | {demand} | {} | {egos} | {sumo_collisions} |",
-            ms.len()
-        );
+        md += &format!("| {controller} | {demand} |");
+        if shares {
+            md += &format!(" {share} |");
+        }
+        md += &format!(" {} | {egos} | {sumo_collisions} |", ms.len());
         for (_, f) in &fields {
             let xs: Vec<f64> = ms.iter().filter_map(|m| f(m)).collect();
             if xs.is_empty() {
@@ -180,7 +191,7 @@ pub fn write_summary(results: &[RunResult], out: &Path) -> std::io::Result<()> {
                 md += &format!(" {mean:.4} ± {sd:.4} |");
             }
         }
-        csv.push('\n');
+        csv += &format!(",{share}\n");
         md.push('\n');
     }
     let failed: Vec<&RunResult> = results.iter().filter(|r| r.status != "ok").collect();
