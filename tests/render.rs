@@ -7,6 +7,9 @@ use common::{bin, car, fresh_dir, scene};
 use image::AnimationDecoder;
 use mpgdrive::render::charts::{Panel, Series, mean_band, panels_png};
 use mpgdrive::render::scene::{Layout, episode_gif, frame_png, key_steps};
+use mpgdrive::render::timespace::{
+    CONFLICT_POINT, DiagramLayout, Mark, Road, SSM_MARK, Sample, TimeSpace, speed_color, timespace_png,
+};
 use mpgdrive::report::{Block, Document};
 
 fn layout() -> Layout {
@@ -187,4 +190,205 @@ fn scenario_and_report_commands_write_their_pictures() {
         html.contains("Statistical results: MARL with MPGs")
             && html.contains("Not included: no co-simulation")
     );
+}
+
+/// A target-lane car at 10 m/s from 100 m before the conflict point for 20 s, and a ramp ego
+/// held 20 m before it for 10 s, recorded every 0.1 s.
+fn merge_trace() -> TimeSpace {
+    let mut ts = TimeSpace::new(0.1);
+    for k in 0..=200 {
+        let t = f64::from(k) / 10.0;
+        let car = Sample {
+            t,
+            s: -100.0 + 10.0 * t,
+            v: 10.0,
+            marked: false,
+        };
+        ts.record("car", Road::Target, car);
+        if k <= 100 {
+            let ego = Sample {
+                t,
+                s: -20.0,
+                v: 0.0,
+                marked: true,
+            };
+            ts.record("ego", Road::Ramp, ego);
+        }
+    }
+    ts
+}
+
+#[test]
+fn time_space_records_split_tracks_and_locate_vehicles() {
+    let mut ts = merge_trace();
+    assert_eq!(ts.tracks.len(), 2);
+    let mark = ts.locate("car", 5.04).unwrap();
+    assert_eq!((mark.road, mark.t), (Road::Target, 5.0));
+    assert!((mark.s + 50.0).abs() < 1e-9);
+    assert_eq!(ts.locate("ego", 99.0).unwrap().t, 10.0); // the last sample is the nearest
+    assert!(ts.locate("nobody", 1.0).is_none());
+    // A gap of more than one step, or another road, begins a new track.
+    let at = |t: f64, s: f64| Sample {
+        t,
+        s,
+        v: 5.0,
+        marked: false,
+    };
+    ts.record("ego", Road::Ramp, at(10.3, -19.0));
+    ts.record("ego", Road::Target, at(10.4, 1.0));
+    ts.record("ego", Road::Target, at(10.5, 1.5));
+    assert_eq!(ts.tracks.len(), 4);
+    assert_eq!(ts.tracks[3].samples.len(), 2);
+    assert_eq!(ts.locate("ego", 10.45).unwrap().road, Road::Target);
+}
+
+#[test]
+fn time_space_diagrams_put_each_vehicle_at_its_time_and_distance() {
+    let dir = fresh_dir("render-timespace");
+    let mut ts = merge_trace();
+    ts.collisions.push(Mark {
+        road: Road::Target,
+        t: 15.0,
+        s: 50.0,
+    });
+    ts.conflicts.push(Mark {
+        road: Road::Ramp,
+        t: 2.0,
+        s: -20.0,
+    });
+    let layout = DiagramLayout::fit(&[&ts], (1600, 900));
+    // Time to the last sample; distances rounded out to 10 m plus 10 m (the ramp's range
+    // includes the conflict point); speeds up to 10 m/s rounded up to 5.
+    assert_eq!(layout.t, (0.0, 20.0));
+    assert_eq!(layout.target, (-110.0, 110.0));
+    assert_eq!(layout.ramp, (-30.0, 10.0));
+    assert_eq!(layout.v_max, 10.0);
+    // 1400 px of time (70 px/s) from column 80; the target panel's 469 px hold 220 m from
+    // row 84, the ramp panel's 235 px hold 40 m from row 84 + 469 + 56 = 609.
+    let (target, ramp) = (layout.view(Road::Target), layout.view(Road::Ramp));
+    assert_eq!(target.to_px(5.0, -50.0), (430, 425)); // 469 * 160 / 220 = 341.1 rows down
+    assert_eq!(target.to_px(15.0, 50.0), (1130, 212)); // 469 * 60 / 220 = 127.9
+    assert_eq!(ramp.to_px(5.0, -20.0), (430, 785)); // 235 * 30 / 40 = 176.25
+    assert_eq!(ramp.to_px(0.0, 0.0), (80, 668)); // 235 * 10 / 40 = 58.75
+
+    let path = dir.join("timespace.png");
+    timespace_png(&path, &layout, &ts, "test", "driven").unwrap();
+    let img = image::open(&path).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (1600, 900));
+    let px = |(x, y): (i32, i32)| img.get_pixel(x as u32, y as u32).0;
+    let rgb = |c: plotters::style::RGBColor| [c.0, c.1, c.2];
+    assert_eq!(rgb(speed_color(10.0, 10.0)), [30, 150, 60]); // top of the scale: green
+    assert_eq!(rgb(speed_color(0.0, 10.0)), [200, 30, 30]); // stopped: red
+    assert_eq!(px((430, 425)), [30, 150, 60]); // the car at 5 s, 50 m before x_c
+    assert_eq!(px((430, 415)), [255, 255, 255]); // 10 rows up: nothing there then
+    assert_eq!(px((1130, 212)), [0, 0, 0]); // the collision's cross over the car at 15 s
+    assert_eq!(px((430, 785)), [200, 30, 30]); // the waiting ego, red
+    assert_eq!(px((430, 786 + 1)), [20, 20, 20]); // under it, its dark outline
+    assert_eq!(px((430, 795)), [255, 255, 255]);
+    assert_eq!(px((84, 668)), rgb(CONFLICT_POINT)); // the conflict point, dashed
+    let (x, y) = ramp.to_px(2.0, -20.0);
+    assert_eq!(px((x, y - 5)), rgb(SSM_MARK)); // the SSM conflict's triangle, at its apex
+}
+
+#[test]
+fn reports_include_time_space_diagrams_and_batch_charts() {
+    use mpgdrive::batch::plots::batch_plots;
+    use mpgdrive::batch::summary::{RunMetrics, RunResult, write_summary};
+    let dir = fresh_dir("render-batch");
+    // A batch of 2 demand levels x 2 seeds x 2 controllers, results written by hand.
+    let runs = dir.join("batch/runs");
+    std::fs::create_dir_all(&runs).unwrap();
+    let mut results = Vec::new();
+    for (controller, speed) in [("mpg", 8.0), ("sumo", 13.0)] {
+        for demand in [0.8, 1.2] {
+            for seed in [0u64, 1] {
+                let key = format!("d{demand}_s{seed}__{controller}");
+                let r = RunResult {
+                    key: key.clone(),
+                    route_file: format!("d{demand}_s{seed}.rou.xml").into(),
+                    demand: Some(demand),
+                    controllable_share: None,
+                    controller: controller.into(),
+                    seed,
+                    status: "ok".into(),
+                    error: None,
+                    version: "test".into(),
+                    command: Vec::new(),
+                    wall_seconds: 1.0,
+                    metrics: Some(RunMetrics {
+                        egos: 10,
+                        unfinished: 0,
+                        collisions: 0,
+                        failures: 0,
+                        mean_speed: speed - demand + seed as f64,
+                        mean_abs_accel: 1.0,
+                        mean_abs_jerk: 1.0,
+                        sumo_collisions: 0,
+                        mean_time_loss: Some(5.0 * demand),
+                        vehicle_seconds: 100.0,
+                        ssm_conflict_egos: Some(seed as usize),
+                    }),
+                };
+                std::fs::write(runs.join(format!("{key}.json")), serde_json::to_string(&r).unwrap()).unwrap();
+                results.push(r);
+            }
+        }
+    }
+    write_summary(&results, &dir.join("batch")).unwrap();
+    let charts = batch_plots(&results, &dir.join("batch")).unwrap();
+    let names: Vec<String> = charts
+        .iter()
+        .map(|(p, _)| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    // Demand is swept, the controllable share is not.
+    assert_eq!(
+        names,
+        [
+            "batch_demand_speed.png",
+            "batch_demand_time_loss.png",
+            "batch_demand_conflict_share.png",
+            "batch_demand_collision_rate.png"
+        ]
+    );
+    let summary = std::fs::read_to_string(dir.join("batch/summary.csv")).unwrap();
+    // mpg at demand 0.8: speeds 7.2 and 8.2 over the two seeds, conflict shares 0 and 0.1.
+    assert!(
+        summary.contains("mpg,0.80,2,20,0,0.000000,0.000000,0.000000,0.000000,7.700000,0.707107,"),
+        "{summary}"
+    );
+    assert!(summary.contains(",0.050000,0.070711,\n"), "{summary}");
+
+    // A co-simulation folder with its table and one diagram.
+    let cosim = dir.join("cosim");
+    std::fs::create_dir_all(&cosim).unwrap();
+    std::fs::write(cosim.join("cosim.md"), "| Metric | mpg |\n|---|---|\n| Egos | 1 |\n").unwrap();
+    let ts = merge_trace();
+    let layout = DiagramLayout::fit(&[&ts], (800, 450));
+    timespace_png(&cosim.join("timespace_mpg.png"), &layout, &ts, "t", "driven").unwrap();
+
+    let report = dir.join("report");
+    let o = bin()
+        .args(["report", "--config", "configs/smoke.toml", "--ngsim", "/nonexistent", "--cosim"])
+        .arg(&cosim)
+        .arg("--batch")
+        .arg(dir.join("batch"))
+        .arg("--out")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(report.join("report.md")).unwrap();
+    assert!(md.contains("Time-space diagram (timespace_mpg)"), "{md}");
+    assert!(md.contains("## Batch co-simulation") && md.contains("figures/batch_demand_speed.png"));
+    assert!(report.join("figures/batch_demand_collision_rate.png").is_file());
+
+    // A --batch folder without a summary is refused before any work.
+    let o = bin()
+        .args(["report", "--config", "configs/smoke.toml", "--batch", "/nonexistent", "--out"])
+        .arg(dir.join("refused"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no summary.md"));
+    assert!(!dir.join("refused").exists());
 }
