@@ -111,6 +111,17 @@ fn a_small_batch_runs_every_combination_and_summarises_them() {
         rows[3]
     );
     assert!(out.join("logs/merge_d1.00_s0__sumo__s0.log").is_file());
+    // Two demand levels: the charts against demand, none against the controllable share.
+    for metric in ["speed", "time_loss", "conflict_share", "collision_rate"] {
+        assert!(
+            out.join(format!("batch_demand_{metric}.png")).is_file(),
+            "{metric}"
+        );
+        assert!(
+            !out.join(format!("batch_share_{metric}.png")).exists(),
+            "{metric}"
+        );
+    }
 }
 
 #[test]

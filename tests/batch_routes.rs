@@ -95,3 +95,39 @@ fn out_of_range_shares_are_refused() {
     let err = generate(&base, &geometry, &spec, &out_dir("bad")).unwrap_err();
     assert!(err.to_string().contains("--ramp-share 1.5"), "{err}");
 }
+
+#[test]
+fn a_controllable_share_sweep_keeps_the_arrivals_and_changes_the_types() {
+    let (base, geometry) = i80();
+    let out = out_dir("sweep");
+    let spec = DemandSpec {
+        scales: vec![1.0],
+        ramp_share: None,
+        controllable_shares: vec![0.0, 1.0],
+        seeds: vec![3],
+        duration: 300.0,
+    };
+    let manifest = generate(&base, &geometry, &spec, &out).unwrap();
+    let files: Vec<(&str, Option<f64>)> = manifest
+        .iter()
+        .map(|e| (e.file.as_str(), e.controllable_share))
+        .collect();
+    assert_eq!(
+        files,
+        [
+            ("i80_d1.00_c0.00_s3.rou.xml", Some(0.0)),
+            ("i80_d1.00_c1.00_s3.rou.xml", Some(1.0))
+        ]
+    );
+    let (none, all) = (vehicles(&out.join(files[0].0)), vehicles(&out.join(files[1].0)));
+    let when = |v: &[(f64, String, String)]| v.iter().map(|x| (x.0, x.2.clone())).collect::<Vec<_>>();
+    assert_eq!(when(&none), when(&all), "same departures and routes");
+    let ramp_types = |v: &[(f64, String, String)]| {
+        v.iter()
+            .filter(|x| x.2 == "onramp")
+            .map(|x| x.1.clone())
+            .collect::<std::collections::BTreeSet<_>>()
+    };
+    assert_eq!(ramp_types(&none).into_iter().collect::<Vec<_>>(), ["human_ramp"]);
+    assert_eq!(ramp_types(&all).into_iter().collect::<Vec<_>>(), ["ctrl"]);
+}

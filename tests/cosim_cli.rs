@@ -72,6 +72,30 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
     }
     let csv = std::fs::read_to_string(out_dir.join("egos.csv")).unwrap();
     assert!(csv.starts_with("controller,seed,id,"));
+    for c in ["mpg", "sarl", "sumo"] {
+        let png = image::open(out_dir.join(format!("timespace_{c}.png"))).unwrap();
+        assert_eq!((png.width(), png.height()), (1600, 900), "{c}");
+    }
+    // Without the diagrams: the same run writes none.
+    let plain = format!("{relative}-plain");
+    let out = bin()
+        .args([
+            "cosim",
+            "--sumocfg",
+            CFG,
+            "--end",
+            "20",
+            "--controllers",
+            "sumo",
+            "--no-diagrams",
+            "--out",
+            &plain,
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join(plain);
+    assert!(plain.join("cosim.md").is_file() && !plain.join("timespace_sumo.png").exists());
 }
 
 #[test]

@@ -329,7 +329,11 @@ fn reports_include_time_space_diagrams_and_batch_charts() {
                         ssm_conflict_egos: Some(seed as usize),
                     }),
                 };
-                std::fs::write(runs.join(format!("{key}.json")), serde_json::to_string(&r).unwrap()).unwrap();
+                std::fs::write(
+                    runs.join(format!("{key}.json")),
+                    serde_json::to_string(&r).unwrap(),
+                )
+                .unwrap();
                 results.push(r);
             }
         }
@@ -361,14 +365,25 @@ fn reports_include_time_space_diagrams_and_batch_charts() {
     // A co-simulation folder with its table and one diagram.
     let cosim = dir.join("cosim");
     std::fs::create_dir_all(&cosim).unwrap();
-    std::fs::write(cosim.join("cosim.md"), "| Metric | mpg |\n|---|---|\n| Egos | 1 |\n").unwrap();
+    std::fs::write(
+        cosim.join("cosim.md"),
+        "| Metric | mpg |\n|---|---|\n| Egos | 1 |\n",
+    )
+    .unwrap();
     let ts = merge_trace();
     let layout = DiagramLayout::fit(&[&ts], (800, 450));
     timespace_png(&cosim.join("timespace_mpg.png"), &layout, &ts, "t", "driven").unwrap();
 
     let report = dir.join("report");
     let o = bin()
-        .args(["report", "--config", "configs/smoke.toml", "--ngsim", "/nonexistent", "--cosim"])
+        .args([
+            "report",
+            "--config",
+            "configs/smoke.toml",
+            "--ngsim",
+            "/nonexistent",
+            "--cosim",
+        ])
         .arg(&cosim)
         .arg("--batch")
         .arg(dir.join("batch"))
@@ -384,7 +399,14 @@ fn reports_include_time_space_diagrams_and_batch_charts() {
 
     // A --batch folder without a summary is refused before any work.
     let o = bin()
-        .args(["report", "--config", "configs/smoke.toml", "--batch", "/nonexistent", "--out"])
+        .args([
+            "report",
+            "--config",
+            "configs/smoke.toml",
+            "--batch",
+            "/nonexistent",
+            "--out",
+        ])
         .arg(dir.join("refused"))
         .output()
         .unwrap();
