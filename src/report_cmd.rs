@@ -398,7 +398,7 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     )));
 
     // Co-simulation, NGSIM and batch, when present.
-    cosim_section(&mut doc, &args.cosim)?;
+    cosim_section(&mut doc, &args.cosim, &figures)?;
     include_results(
         &mut doc,
         "NGSIM I-80 replay (Table IV)",
@@ -436,8 +436,9 @@ fn include_results(doc: &mut Document, heading: &str, file: &Path, missing: &str
     }
 }
 
-/// The co-simulation table and the time-space diagram of each controller that has one.
-fn cosim_section(doc: &mut Document, dir: &Path) -> Result<()> {
+/// The co-simulation table and the time-space diagram of each controller that has one
+/// (copied into `figures`, so that the Markdown report's links stay inside its folder).
+fn cosim_section(doc: &mut Document, dir: &Path, figures: &Path) -> Result<()> {
     let included = include_results(
         doc,
         "SUMO co-simulation",
@@ -447,21 +448,26 @@ fn cosim_section(doc: &mut Document, dir: &Path) -> Result<()> {
     if !included {
         return Ok(());
     }
-    let diagrams: Vec<PathBuf> = ["mpg", "sarl", "sumo"]
-        .iter()
-        .map(|c| dir.join(format!("timespace_{c}.png")))
-        .filter(|p| p.is_file())
+    let controllers: Vec<&str> = ["mpg", "sarl", "sumo"]
+        .into_iter()
+        .filter(|c| dir.join(format!("timespace_{c}.png")).is_file())
         .collect();
-    if !diagrams.is_empty() {
+    if !controllers.is_empty() {
         doc.push(Block::Text(
             "Time-space diagrams, one per controller on one scale: each vehicle's distance to the conflict point against time, coloured by speed; thick outlined lines are the vehicles the controller drives (for sumo, the same ramp vehicles driven by SUMO); triangles are SSM conflicts, crosses collisions.".into(),
         ));
     }
-    for path in diagrams {
-        let name = path
-            .file_stem()
-            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-        doc.push(Block::Image(path, format!("Time-space diagram ({name})")));
+    for c in controllers {
+        let (path, copy) = (
+            dir.join(format!("timespace_{c}.png")),
+            figures.join(format!("timespace_{c}.png")),
+        );
+        let bytes = std::fs::read(&path).with_context(|| format!("reading {}", path.display()))?;
+        atomic::write(&copy, bytes).with_context(|| format!("writing {}", copy.display()))?;
+        doc.push(Block::Image(
+            copy,
+            format!("Time-space diagram of the {c} controller"),
+        ));
     }
     Ok(())
 }

@@ -393,7 +393,10 @@ fn reports_include_time_space_diagrams_and_batch_charts() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let md = std::fs::read_to_string(report.join("report.md")).unwrap();
-    assert!(md.contains("Time-space diagram (timespace_mpg)"), "{md}");
+    assert!(
+        md.contains("![Time-space diagram of the mpg controller](figures/timespace_mpg.png)"),
+        "{md}"
+    );
     assert!(md.contains("## Batch co-simulation") && md.contains("figures/batch_demand_speed.png"));
     assert!(report.join("figures/batch_demand_collision_rate.png").is_file());
 
