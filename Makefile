@@ -12,7 +12,7 @@ build:
 	@$(ENV) && cargo build --release
 
 # The main job on the bundled policies and network: a 5-minute co-sim of the three controllers
-# on the I-80-like merge, an NGSIM-format replay on a synthetic file (no official data here),
+# on the I-80-like merge (with their time-space diagrams), an NGSIM-format replay on a synthetic file (no official data here),
 # then the report (Tables II-IV, the specific scenarios, training curves); prints Table II and
 # the report's path.
 DEMO = results/demo
