@@ -122,7 +122,9 @@ fn a_lane_that_is_not_in_the_network_is_named_with_the_lanes_that_are() {
         .arg(&dir)
         .output()
         .unwrap();
-    assert_rejected(&out, &["merge_7", "target_lanes", "merge_1", "ramp_0"]);
+    // The message names the --merge file, not the merge.toml beside the .sumocfg.
+    let named = path.display().to_string();
+    assert_rejected(&out, &[&named, "merge_7", "target_lanes", "merge_1", "ramp_0"]);
 }
 
 #[test]

@@ -222,14 +222,18 @@ pub struct Controller {
 }
 
 impl Controller {
-    /// A controller; `policy` is required for `mpg` and `sarl`.
+    /// A controller; `policy` is required for `mpg` and `sarl`. Every rule (observation,
+    /// feasibility projection, merge gate, release) uses the network's conflict point, from
+    /// `geometry`, not the one of `config`'s internal world: the observation reads distances
+    /// to it, so a policy deploys at any conflict point.
     pub fn new(
-        config: Config,
+        mut config: Config,
         geometry: MergeGeometry,
         kind: ControllerKind,
         policy: Option<PolicyNet>,
         modes: ControlModes,
     ) -> Self {
+        config.scenario.conflict_point = geometry.conflict_point;
         let dt = config.sim.dt;
         Controller {
             config,
@@ -755,6 +759,53 @@ mod tests {
         .map(|&(id, slot)| (id.to_owned(), slot))
         .collect();
         assert_eq!(players, expected);
+    }
+
+    #[test]
+    fn the_merge_gate_holds_egos_at_the_networks_conflict_point() {
+        // Regression: the gate read configs/paper.toml's 180 m while merge.toml put the
+        // conflict point elsewhere. Here x_c = 300 m: an ego at 293 m and 10 m/s, beside a
+        // target-lane car, at the last step from which it can still stop before 300 m, must be
+        // held, though it is past 180 m (where it would count as committed and go on at +g).
+        let mut c = paper_controller();
+        c = Controller::new(
+            c.config.clone(),
+            MergeGeometry {
+                conflict_point: 300.0,
+                ..c.geometry.clone()
+            },
+            ControllerKind::Mpg,
+            Some(full_throttle(&c.config)),
+            ControlModes::SAFE,
+        );
+        let cars = [car("ego", 293.0, 10.0, true), car("lane.1", 288.0, 12.0, false)];
+        let game = Game {
+            members: vec![(0, 0), (1, 5)],
+        };
+        let commands = c.decide(&cars, &[game]);
+        let ego = commands.iter().find(|(j, _)| *j == 0).unwrap().1;
+        // The stop bound: after this step (1 m) 5.9 m remain to 299.9 m, enough to stop from
+        // sqrt(2 g 5.9 + (g dt)^2) - g dt = 9.823 m/s, so a = (9.823 - 10) / 0.1 = -1.77.
+        assert!((ego + 1.77).abs() < 0.01, "ego held at 300 m: {ego}");
+        // The car beside it (a player, driven by the policy) only gets its projection.
+        let lane = commands.iter().find(|(j, _)| *j == 1).unwrap().1;
+        assert!(lane > 0.0, "{lane}");
+    }
+
+    /// A policy whose every action is +g (all weights 0, output bias large).
+    fn full_throttle(config: &Config) -> PolicyNet {
+        let net = PolicyNet::new(crate::policy::network::NetSpec::new(
+            config.n_agents(),
+            config.train.hidden,
+            config.vehicle.max_accel,
+        ));
+        tch::no_grad(|| {
+            for (name, mut var) in net.vs.variables() {
+                let value = if name == "output.bias" { 20.0 } else { 0.0 };
+                let _ = var.fill_(value);
+            }
+        });
+        net
     }
 
     #[test]

@@ -240,11 +240,7 @@ pub fn run_controller(
         .geometry
         .check_lanes(&sumo.lane_ids()?)
         .map_err(|source| CosimError::Geometry {
-            path: settings
-                .sumocfg
-                .with_file_name("merge.toml")
-                .display()
-                .to_string(),
+            path: settings.geometry_path.display().to_string(),
             source,
         })?;
     let mut controller = Controller::new(
