@@ -124,6 +124,12 @@ fn parse_scales(text: &str) -> Result<Vec<f64>> {
 }
 
 pub fn routes(args: RoutesArgs) -> Result<ExitCode> {
+    if !args.base.is_file() {
+        return Err(crate::usage(format!(
+            "--base {}: no such route file",
+            args.base.display()
+        )));
+    }
     let merge = args
         .merge
         .clone()
@@ -136,10 +142,7 @@ pub fn routes(args: RoutesArgs) -> Result<ExitCode> {
         seeds: args.seeds,
         duration: args.duration,
     };
-    let manifest = generate(&args.base, &geometry, &spec, &args.out).map_err(|e| match e {
-        mpgdrive::batch::routes::RoutesError::Invalid(m) => crate::usage(m),
-        other => anyhow::Error::new(other),
-    })?;
+    let manifest = generate(&args.base, &geometry, &spec, &args.out)?;
     for m in &manifest {
         crate::print(&format!(
             "{} (scale {}{}, seed {}): {} vehicles",

@@ -8,6 +8,7 @@ pub mod atomic;
 pub mod batch;
 pub mod config;
 pub mod eval;
+pub mod exit;
 pub mod game;
 pub mod ngsim;
 pub mod num;

@@ -3,8 +3,8 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use mpgdrive::config::{Config, ConfigError};
-use mpgdrive::eval::study::{EvalError, Rules, Surrounding, evaluate, load_policies};
+use mpgdrive::config::Config;
+use mpgdrive::eval::study::{Rules, Surrounding, evaluate, load_policies};
 use mpgdrive::eval::{EpisodeMetrics, Summary};
 use mpgdrive::game::PaperReward;
 use mpgdrive::game::mpg_check::{CheckSettings, check_mpg, evaluations};
@@ -184,12 +184,8 @@ macro_rules! outln {
 
 /// An error in the user's input, not a failure of the tool (exit code 2).
 fn usage(message: impl Into<String>) -> anyhow::Error {
-    anyhow::Error::new(UsageMessage(message.into()))
+    anyhow::Error::new(mpgdrive::exit::UsageError(message.into()))
 }
-
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-struct UsageMessage(String);
 
 /// Prints to stdout, ending quietly on a closed pipe.
 fn print(text: &str) -> Result<()> {
@@ -211,42 +207,14 @@ fn pick_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<mpgdri
     Ok(policies.swap_remove(index).0)
 }
 
-/// Whether an error is about SUMO (exit code 2: its message says what to fix).
-#[cfg(feature = "sumo")]
-fn sumo_error(e: &anyhow::Error) -> bool {
-    e.downcast_ref::<mpgdrive::sumo::SumoError>().is_some()
-        || e.downcast_ref::<mpgdrive::sumo::cosim::CosimError>().is_some()
-}
-
-#[cfg(not(feature = "sumo"))]
-fn sumo_error(_: &anyhow::Error) -> bool {
-    false
-}
-
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
-            let bad_input = sumo_error(&e)
-                || e.downcast_ref::<ConfigError>().is_some()
-                || e.downcast_ref::<UsageMessage>().is_some()
-                || e.downcast_ref::<mpgdrive::ngsim::load::NgsimError>().is_some()
-                || e.downcast_ref::<mpgdrive::ngsim::smooth::SmoothError>().is_some()
-                || matches!(
-                    e.downcast_ref::<TrainError>(),
-                    Some(TrainError::ForeignCheckpoint { .. })
-                )
-                || matches!(
-                    e.downcast_ref::<EvalError>(),
-                    Some(EvalError::Policy(_) | EvalError::NoPolicy(_) | EvalError::NeedNePolicy { .. })
-                );
-            if bad_input {
-                ExitCode::from(2)
-            } else {
-                ExitCode::from(1)
-            }
+            // 2 when the input is what is wrong, 1 when the tool failed (src/exit.rs).
+            ExitCode::from(mpgdrive::exit::exit_code(e.as_ref()))
         }
     }
 }
