@@ -194,6 +194,36 @@ pub fn batch(args: BatchArgs) -> Result<ExitCode> {
             args.sumocfg.display()
         )));
     }
+    // What every worker would refuse is refused here, before any run: the configuration, the
+    // controllers, the SUMO configuration and the geometry against its network, the policies.
+    let config = mpgdrive::config::Config::load(&args.config)?;
+    if let Some(bad) = args
+        .controllers
+        .iter()
+        .find(|c| !["mpg", "sarl", "sumo"].contains(&c.as_str()))
+    {
+        return Err(crate::usage(format!(
+            "--controllers: unknown controller `{bad}` (mpg, sarl, sumo)"
+        )));
+    }
+    if !(args.end.is_finite() && args.end > 0.0) {
+        return Err(crate::usage(format!(
+            "--end {}: must be a positive number of seconds",
+            args.end
+        )));
+    }
+    let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
+    let merge = args
+        .merge
+        .clone()
+        .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
+    let geometry = MergeGeometry::load(&merge)?;
+    mpgdrive::sumo::inputs::check_geometry(&geometry, &merge, &files.net)?;
+    for (name, policy) in [("mpg", &args.policy), ("sarl", &args.sarl_policy)] {
+        if args.controllers.iter().any(|c| c == name) {
+            crate::pick_policy(policy, None, &config)?;
+        }
+    }
     let abs = |p: &PathBuf| std::fs::canonicalize(p).with_context(|| format!("{}", p.display()));
     let mut common = vec![
         "cosim".to_string(),

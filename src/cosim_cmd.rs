@@ -101,12 +101,15 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
             args.end
         )));
     }
+    // Every input is checked before anything is written: the configuration, the geometry
+    // against its network, the route files.
+    let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
     let merge = args
         .merge
         .clone()
         .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
     let geometry = MergeGeometry::load(&merge)?;
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometry, &merge)?;
     let settings = CosimSettings {
         sumocfg: args.sumocfg.clone(),
         route_files: args.route_files.clone(),
@@ -129,7 +132,8 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
         out: args.out.clone(),
         timespace: !args.no_diagrams,
     };
-    let mut runs = Vec::new();
+    // Every policy is loaded (and checked against the configuration) before the first run.
+    let mut controllers = Vec::new();
     for c in &args.controllers {
         let (kind, policy) = match c {
             ControllerArg::Mpg => (ControllerKind::Mpg, Some(&args.policies.policy)),
@@ -140,6 +144,11 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
             Some(p) => Some(crate::pick_policy(p, args.policy_seed, &config)?),
             None => None,
         };
+        controllers.push((kind, net));
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let mut runs = Vec::new();
+    for (kind, net) in controllers {
         match run_controller(&config, &settings, kind, net) {
             Ok(run) => {
                 eprintln!(

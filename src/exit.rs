@@ -125,6 +125,7 @@ fn user_facing<'a>(e: &'a (dyn Error + 'static)) -> Option<&'a dyn UserFacing> {
         crate::eval::study::EvalError,
         crate::train::TrainError,
         crate::sumo::SumoError,
+        crate::sumo::inputs::InputError,
         crate::ngsim::load::NgsimError,
         crate::ngsim::smooth::SmoothError,
         crate::batch::routes::RoutesError,

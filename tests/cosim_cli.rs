@@ -157,14 +157,9 @@ fn unknown_merge_keys_and_missing_files_are_refused() {
 }
 
 #[test]
-fn a_malformed_route_file_is_sumos_message_and_exit_2() {
+fn route_files_are_checked_before_sumo_starts_and_sumo_names_the_rest() {
     let dir = temp_dir("routes");
     let net = std::fs::canonicalize("sumo_nets/single_lane_merge/merge.net.xml").unwrap();
-    std::fs::write(
-        dir.join("bad.rou.xml"),
-        "<routes>\n  <vehicle id=\"x\" depart=\"0\">\n</routes>\n",
-    )
-    .unwrap();
     std::fs::write(
         dir.join("bad.sumocfg"),
         format!(
@@ -175,17 +170,69 @@ fn a_malformed_route_file_is_sumos_message_and_exit_2() {
     )
     .unwrap();
     std::fs::copy("sumo_nets/single_lane_merge/merge.toml", dir.join("merge.toml")).unwrap();
-    let out = bin()
-        .args(["cosim", "--controllers", "sumo", "--end", "5", "--sumocfg"])
-        .arg(dir.join("bad.sumocfg"))
-        .arg("--out")
-        .arg(&dir)
-        .output()
-        .unwrap();
+    let run = |routes: &str, out: &str| {
+        std::fs::write(dir.join("bad.rou.xml"), routes).unwrap();
+        bin()
+            .args(["cosim", "--controllers", "sumo", "--end", "5", "--sumocfg"])
+            .arg(dir.join("bad.sumocfg"))
+            .arg("--out")
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    // Not well-formed, or a route nobody defines: refused by mpgdrive, nothing written.
+    let unclosed = run("<routes>\n  <vehicle id=\"x\" depart=\"0\">\n</routes>\n", "a");
+    assert_rejected(&unclosed, &["bad.rou.xml", "not well-formed XML"]);
+    let unknown = run(
+        "<routes><vehicle id=\"x\" depart=\"0\" route=\"r9\"/></routes>\n",
+        "b",
+    );
+    assert_rejected(&unknown, &["bad.rou.xml", "`x` uses route `r9`"]);
+    assert!(!dir.join("a").exists() && !dir.join("b").exists());
+    // Well-formed, but a vehicle with neither a route nor a trip: SUMO's own message.
+    let out = run("<routes><vehicle id=\"x\" depart=\"0\"/></routes>\n", "c");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("SUMO error"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+#[test]
+fn a_bad_configuration_or_a_conflict_point_off_the_network_writes_nothing() {
+    let dir = temp_dir("inputs");
+    std::fs::write(dir.join("garbage.sumocfg"), "this is not XML\n").unwrap();
+    std::fs::write(dir.join("routes.sumocfg"), "<routes/>\n").unwrap();
+    let far = std::fs::read_to_string("sumo_nets/single_lane_merge/merge.toml")
+        .unwrap()
+        .replace("conflict_point = 180.0", "conflict_point = 99999.0");
+    assert!(far.contains("99999"));
+    std::fs::write(dir.join("far.toml"), far).unwrap();
+    let run = |cfg: &Path, merge: &str, out: &str| {
+        bin()
+            .args(["cosim", "--controllers", "sumo", "--end", "5", "--sumocfg"])
+            .arg(cfg)
+            .args(["--merge", merge, "--out"])
+            .arg(dir.join(out))
+            .output()
+            .unwrap()
+    };
+    let merge = "sumo_nets/single_lane_merge/merge.toml";
+    assert_rejected(
+        &run(&dir.join("garbage.sumocfg"), merge, "a"),
+        &["garbage.sumocfg", "not well-formed XML"],
+    );
+    assert_rejected(
+        &run(&dir.join("routes.sumocfg"), merge, "b"),
+        &["not a SUMO configuration"],
+    );
+    let far = dir.join("far.toml").display().to_string();
+    assert_rejected(
+        &run(Path::new(CFG), &far, "c"),
+        &["far.toml", "conflict_point 99999 m is not on the ramp_lanes"],
+    );
+    for out in ["a", "b", "c"] {
+        assert!(!dir.join(out).exists(), "{out} written");
+    }
 }
 
 /// A free TCP port on localhost.

@@ -13,6 +13,7 @@ pub mod ffi;
 pub mod geometry;
 #[cfg(feature = "sumo")]
 pub mod handle;
+pub mod inputs;
 
 #[cfg(feature = "sumo")]
 pub use controller::{ControlModes, Controller, ControllerKind, EgoRecord};

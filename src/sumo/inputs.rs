@@ -1,0 +1,225 @@
+//! SUMO inputs checked before a run starts, so that a bad input writes nothing: the
+//! configuration is a SUMO configuration, its network holds the lanes `merge.toml` names and
+//! the conflict point lies on them, and every route file is XML whose vehicles use routes that
+//! exist. SUMO itself would find most of this only after starting (and writing its outputs),
+//! and a conflict point beyond the network would run to the end with no ego.
+
+use crate::sumo::MergeGeometry;
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+/// What is wrong with the inputs (each names its file).
+#[derive(Debug, thiserror::Error)]
+pub enum InputError {
+    /// A file could not be read.
+    #[error("cannot read {path}: {source}")]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A file is not well-formed XML.
+    #[error("{path}: not well-formed XML: {message}")]
+    Xml {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message.
+        message: String,
+    },
+    /// The file is XML but not what it should be, or refers to something that does not exist.
+    #[error("{path}: {message}")]
+    Content {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl crate::exit::UserFacing for InputError {
+    fn is_user_error(&self) -> bool {
+        true
+    }
+}
+
+fn read(path: &Path) -> Result<String, InputError> {
+    std::fs::read_to_string(path).map_err(|source| InputError::Read {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+fn parse<'a>(path: &Path, text: &'a str) -> Result<roxmltree::Document<'a>, InputError> {
+    roxmltree::Document::parse(text).map_err(|e| InputError::Xml {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
+}
+
+fn content(path: &Path, message: String) -> InputError {
+    InputError::Content {
+        path: path.to_path_buf(),
+        message,
+    }
+}
+
+/// The files a SUMO configuration names, resolved against its folder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConfigFiles {
+    /// `net-file`.
+    pub net: PathBuf,
+    /// `route-files`.
+    pub routes: Vec<PathBuf>,
+    /// `additional-files` (they may define routes and types).
+    pub additional: Vec<PathBuf>,
+}
+
+/// Reads a `.sumocfg`: its root must be `<configuration>` (or `<sumoConfiguration>`) and it
+/// must name a network.
+pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
+    let text = read(sumocfg)?;
+    let doc = parse(sumocfg, &text)?;
+    let root = doc.root_element().tag_name().name();
+    if root != "configuration" && root != "sumoConfiguration" {
+        return Err(content(
+            sumocfg,
+            format!("not a SUMO configuration (root element <{root}>, expected <configuration>)"),
+        ));
+    }
+    let dir = sumocfg.parent().unwrap_or(Path::new(""));
+    let list = |option: &str| -> Vec<PathBuf> {
+        doc.descendants()
+            .filter(|n| n.has_tag_name(option))
+            .filter_map(|n| n.attribute("value"))
+            .flat_map(|v| {
+                v.split(',')
+                    .map(str::trim)
+                    .filter(|f| !f.is_empty())
+                    .map(|f| dir.join(f))
+            })
+            .collect()
+    };
+    let net = list("net-file")
+        .pop()
+        .ok_or_else(|| content(sumocfg, "names no network (<net-file value=\"...\"/>)".into()))?;
+    Ok(ConfigFiles {
+        net,
+        routes: list("route-files"),
+        additional: list("additional-files"),
+    })
+}
+
+/// A network's lanes: id and the x range of its shape (m).
+fn network_lanes(net: &Path) -> Result<Vec<(String, f64, f64)>, InputError> {
+    let text = read(net)?;
+    let doc = parse(net, &text)?;
+    if doc.root_element().tag_name().name() != "net" {
+        return Err(content(
+            net,
+            "not a SUMO network (root element is not <net>)".into(),
+        ));
+    }
+    let mut lanes = Vec::new();
+    for lane in doc.descendants().filter(|n| n.has_tag_name("lane")) {
+        let Some(id) = lane.attribute("id") else { continue };
+        let xs: Vec<f64> = lane
+            .attribute("shape")
+            .unwrap_or("")
+            .split_whitespace()
+            .filter_map(|p| p.split(',').next()?.parse().ok())
+            .collect();
+        let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        lanes.push((id.to_owned(), lo, hi));
+    }
+    Ok(lanes)
+}
+
+/// Checks `geometry` against the network: its lanes exist, and the conflict point lies within
+/// the x range of the ramp lanes and of the target lanes.
+pub fn check_geometry(geometry: &MergeGeometry, geometry_path: &Path, net: &Path) -> Result<(), InputError> {
+    let lanes = network_lanes(net)?;
+    let ids: Vec<String> = lanes.iter().map(|l| l.0.clone()).collect();
+    geometry
+        .check_lanes(&ids)
+        .map_err(|e| content(geometry_path, format!("{e} (network {})", net.display())))?;
+    let x_c = geometry.conflict_point;
+    for (key, list) in [
+        ("ramp_lanes", &geometry.ramp_lanes),
+        ("target_lanes", &geometry.target_lanes),
+    ] {
+        let (lo, hi) = lanes
+            .iter()
+            .filter(|l| list.contains(&l.0))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
+                (lo.min(l.1), hi.max(l.2))
+            });
+        if !(lo <= x_c && x_c <= hi) {
+            return Err(content(
+                geometry_path,
+                format!(
+                    "conflict_point {x_c} m is not on the {key} (their x runs from {lo:.1} to {hi:.1} m in {})",
+                    net.display()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks route (and additional) files: well-formed XML, and every `route` a vehicle or flow
+/// names is defined in one of them (as a route or a route distribution).
+pub fn check_routes(files: &[PathBuf]) -> Result<(), InputError> {
+    let texts: Vec<(PathBuf, String)> = files
+        .iter()
+        .map(|f| Ok((f.clone(), read(f)?)))
+        .collect::<Result<_, InputError>>()?;
+    let docs: Vec<(&Path, roxmltree::Document)> = texts
+        .iter()
+        .map(|(f, t)| Ok((f.as_path(), parse(f, t)?)))
+        .collect::<Result<_, InputError>>()?;
+    let defined: HashSet<&str> = docs
+        .iter()
+        .flat_map(|(_, d)| d.descendants())
+        .filter(|n| n.has_tag_name("route") || n.has_tag_name("routeDistribution"))
+        .filter_map(|n| n.attribute("id"))
+        .collect();
+    for (path, doc) in &docs {
+        let uses = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("vehicle") || n.has_tag_name("flow"))
+            .filter_map(|n| Some((n.attribute("id").unwrap_or("?"), n.attribute("route")?)));
+        for (id, route) in uses {
+            if !defined.contains(route) {
+                return Err(content(
+                    path,
+                    format!("`{id}` uses route `{route}`, which no route file defines"),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Every check before a co-simulation, given the configuration's files: the geometry against
+/// its network, and the route files (`route_files`, a comma-separated list as SUMO takes it,
+/// replacing the configuration's when given).
+pub fn check_inputs(
+    files: &ConfigFiles,
+    route_files: Option<&Path>,
+    geometry: &MergeGeometry,
+    geometry_path: &Path,
+) -> Result<(), InputError> {
+    check_geometry(geometry, geometry_path, &files.net)?;
+    let mut routes = match route_files {
+        Some(r) => r
+            .to_string_lossy()
+            .split(',')
+            .map(|f| PathBuf::from(f.trim()))
+            .collect(),
+        None => files.routes.clone(),
+    };
+    routes.extend(files.additional.iter().cloned());
+    check_routes(&routes)
+}
