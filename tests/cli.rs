@@ -337,3 +337,69 @@ fn train_then_eval_end_to_end_and_deterministic() {
         .unwrap();
     assert_rejected(&out, "made for 9 players");
 }
+
+/// The curves' (epoch, train objective, probe objective) rows of a finished run.
+fn curve_rows(dir: &Path) -> Vec<String> {
+    std::fs::read_to_string(dir.join("seed3.curves.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').take(3).collect::<Vec<_>>().join(","))
+        .collect()
+}
+
+#[test]
+fn training_killed_with_sigkill_resumes_from_its_last_checkpoint() {
+    let text = smoke_text().replace("epochs = 15 ", "epochs = 60 "); // a checkpoint every 5
+    assert!(text.contains("epochs = 60 "));
+    let config = temp_config("kill9", &text);
+    let base = std::env::temp_dir().join(format!("mpgdrive-cli-{}-kill9", std::process::id()));
+    let _ = std::fs::remove_dir_all(&base);
+    let train = |out: &Path, resume: bool| {
+        let mut c = bin();
+        c.args(["train", "--mode", "mpg", "--seeds", "3", "--config"])
+            .arg(&config)
+            .arg("--out")
+            .arg(out);
+        if resume {
+            c.arg("--resume");
+        }
+        c
+    };
+    let whole = base.join("whole");
+    assert!(train(&whole, false).output().unwrap().status.success());
+
+    let cut = base.join("cut");
+    let mut child = train(&cut, false)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let ckpt = cut.join("seed3.ckpt.json");
+    let started = std::time::Instant::now();
+    while !ckpt.is_file() {
+        assert!(started.elapsed().as_secs() < 60, "no checkpoint");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap(); // SIGKILL: no chance to tidy up
+    child.wait().unwrap();
+    assert!(!cut.join("seed3.json").exists(), "killed before it finished");
+    let side: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&ckpt).unwrap()).unwrap();
+    let saved = side["epochs"].as_u64().unwrap() as usize;
+    assert!(
+        saved >= 5 && saved % 5 == 0 && saved < 60,
+        "checkpoint at epoch {saved}"
+    );
+
+    let resumed = train(&cut, true).output().unwrap();
+    assert!(
+        resumed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    let (whole, cut) = (curve_rows(&whole), curve_rows(&cut));
+    assert_eq!(cut.len(), 60, "every epoch in the curves");
+    // Nothing up to the checkpoint is lost or redone: those rows are the uninterrupted run's.
+    assert_eq!(cut[..saved], whole[..saved]);
+    assert!(!base.join("cut/seed3.ckpt.json").exists());
+}
