@@ -214,6 +214,8 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
             )));
         }
     }
+    check_results(&args.cosim, &["cosim.md", "cosim.json"])?;
+    check_results(&args.ngsim, &["table4.md"])?;
     if let Some(dir) = args.batch.as_ref().filter(|d| !d.join("summary.md").is_file()) {
         return Err(crate::usage(format!(
             "--batch {}: no summary.md (not a `mpgdrive batch` or `merge` output directory)",
@@ -417,6 +419,29 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         t0.elapsed().as_secs_f64()
     ))?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// A results folder is left out when it does not exist; when it does, its files must be
+/// there and readable (JSON files must parse), or the report is refused before any work.
+fn check_results(dir: &Path, files: &[&str]) -> Result<()> {
+    if !dir.is_dir() {
+        return Ok(());
+    }
+    for name in files {
+        let path = dir.join(name);
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            crate::usage(format!(
+                "{}: {e} (a results folder needs {})",
+                path.display(),
+                files.join(" and ")
+            ))
+        })?;
+        if name.ends_with(".json") {
+            serde_json::from_str::<serde_json::Value>(&text)
+                .map_err(|e| crate::usage(format!("{}: not valid JSON: {e}", path.display())))?;
+        }
+    }
+    Ok(())
 }
 
 /// A heading and a saved Markdown results file, or a line saying why it is not there.
