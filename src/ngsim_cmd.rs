@@ -98,6 +98,9 @@ fn load_prepared(input: &Input) -> Result<(NgsimConfig, Prepared)> {
     let ngsim = NgsimConfig::load(&input.ngsim)?;
     let data = load(&input.input, &ngsim.location)?;
     let prepared = prepare(&data, &ngsim)?;
+    for w in &prepared.summary.warnings {
+        eprintln!("warning: {}: {w}", input.input.display());
+    }
     Ok((ngsim, prepared))
 }
 

@@ -296,3 +296,60 @@ fn ngsim_commands_write_their_outputs_and_refuse_bad_input() {
         assert!(!prep.join("trajectories.csv").exists());
     }
 }
+
+#[test]
+fn a_file_without_lateral_positions_or_sizes_keeps_its_lanes_and_warns() {
+    // A re-extraction that publishes lanes and longitudinal positions only: Local_X (column 5)
+    // and v_Length / v_Width (9 and 10) all zero.
+    let ngsim = ngsim_config();
+    let synthetic = generate(&paper(), &ngsim, 4, 5, 0.3, Layout::Text);
+    let text: String = synthetic
+        .text
+        .lines()
+        .map(|line| {
+            let mut cols: Vec<&str> = line.split_whitespace().collect();
+            for k in [4, 8, 9] {
+                cols[k] = "0";
+            }
+            cols.join(" ") + "\n"
+        })
+        .collect();
+    let dir = fresh_dir("ngsim-degenerate");
+    let input = dir.join("trajectories.txt");
+    std::fs::write(&input, &text).unwrap();
+    let out = bin()
+        .args(["ngsim", "prepare", "--input"])
+        .arg(&input)
+        .arg("--out")
+        .arg(dir.join("prepared"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("warning") && stderr.contains("recorded Lane_ID is kept"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("default size"), "{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("prepared/summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["lateral_constant"], true);
+    assert_eq!(summary["lane_changed_rows"], 0);
+    assert_eq!(summary["default_sizes"], summary["vehicles"]);
+    assert_eq!(summary["warnings"].as_array().unwrap().len(), 2);
+    // Every row keeps its recorded lane; every (class 2) car is 4.6 x 1.8 m.
+    let csv = std::fs::read_to_string(dir.join("prepared/trajectories.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert!(!rows.is_empty());
+    for r in &rows {
+        assert_eq!(r[col("Lane_ID")], r[col("Recorded_Lane_ID")]);
+        assert_eq!(r[col("Class")], "2");
+        assert_eq!((r[col("Length_m")], r[col("Width_m")]), ("4.600", "1.800"));
+    }
+    // The synthetic file's ramp vehicles merge: the recorded lanes still show them.
+    let ramp = ngsim.lanes.ramp_lane().to_string();
+    assert!(rows.iter().any(|r| r[col("Lane_ID")] == ramp));
+}

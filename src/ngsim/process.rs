@@ -72,6 +72,25 @@ pub struct PrepareSummary {
     pub ramp_vehicles: usize,
     /// Of those, vehicles last seen in the target lane (the merge scenarios' egos).
     pub merging_vehicles: usize,
+    /// `Local_X` is the same in every row (some re-extractions publish lanes and longitudinal
+    /// positions only): lanes are the recorded ones, not reassigned.
+    pub lateral_constant: bool,
+    /// Vehicles recorded with a zero (or negative) length or width, given their class's
+    /// default size ([`class_size`]).
+    pub default_sizes: usize,
+    /// What was noticed and worked around, one sentence each.
+    pub warnings: Vec<String>,
+}
+
+/// Default length and width (m) of an NGSIM vehicle class, for records without a size:
+/// 1 motorcycle (2.4 x 0.9), 3 truck (12.2 x 2.6), otherwise an automobile (4.6 x 1.8;
+/// NGSIM I-80's median car is 4.6 m long).
+pub fn class_size(class: u8) -> (f64, f64) {
+    match class {
+        1 => (2.4, 0.9),
+        3 => (12.2, 2.6),
+        _ => (4.6, 1.8),
+    }
 }
 
 /// Processed data.
@@ -129,6 +148,19 @@ pub fn prepare(data: &Trajectories, config: &NgsimConfig) -> Result<Prepared, Sm
         frames: [u32::MAX, 0],
         ..Default::default()
     };
+    let (lo, hi) = data
+        .vehicles
+        .values()
+        .flatten()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| {
+            (lo.min(r.local_x), hi.max(r.local_x))
+        });
+    summary.lateral_constant = data.rows > 0 && hi - lo < 1e-6;
+    if summary.lateral_constant {
+        summary.warnings.push(format!(
+            "Local_X is {lo} in every row: lanes cannot be reassigned, the recorded Lane_ID is kept"
+        ));
+    }
     let mut tracks = Vec::with_capacity(data.vehicles.len());
     for (&id, rows) in &data.vehicles {
         let frames: Vec<u32> = rows.iter().map(|r| r.frame).collect();
@@ -138,12 +170,16 @@ pub fn prepare(data: &Trajectories, config: &NgsimConfig) -> Result<Prepared, Sm
         let lateral = savgol_segments(&frames, &raw_x, w, p)?;
         let speed = derivative(&frames, &front, FRAME_SECONDS, |i| rows[i].speed);
         let accel = derivative(&frames, &speed, FRAME_SECONDS, |_| 0.0);
-        let lane: Vec<u8> = lateral
-            .iter()
-            .zip(&front)
-            .map(|(&x, &y)| lanes.lane_at(x, y))
-            .collect();
         let recorded_lane: Vec<u8> = rows.iter().map(|r| r.lane).collect();
+        let lane: Vec<u8> = if summary.lateral_constant {
+            recorded_lane.clone()
+        } else {
+            lateral
+                .iter()
+                .zip(&front)
+                .map(|(&x, &y)| lanes.lane_at(x, y))
+                .collect()
+        };
         summary.unsmoothed_pieces += short_pieces(&frames, w);
         summary.frames[0] = summary.frames[0].min(frames[0]);
         summary.frames[1] = summary.frames[1].max(frames[frames.len() - 1]);
@@ -155,6 +191,11 @@ pub fn prepare(data: &Trajectories, config: &NgsimConfig) -> Result<Prepared, Sm
             summary.ramp_vehicles += 1;
             summary.merging_vehicles += usize::from(lane[lane.len() - 1] == lanes.target_lane());
         }
+        let (mut length, mut width) = (rows[0].length, rows[0].width);
+        if !(length > 0.0 && width > 0.0) {
+            (length, width) = class_size(rows[0].class);
+            summary.default_sizes += 1;
+        }
         tracks.push(Track {
             id,
             frames,
@@ -164,10 +205,16 @@ pub fn prepare(data: &Trajectories, config: &NgsimConfig) -> Result<Prepared, Sm
             accel,
             lane,
             recorded_lane,
-            length: rows[0].length,
-            width: rows[0].width,
+            length,
+            width,
             class: rows[0].class,
         });
+    }
+    if summary.default_sizes > 0 {
+        summary.warnings.push(format!(
+            "{} vehicles have no length or width: their class's default size is used",
+            summary.default_sizes
+        ));
     }
     Ok(Prepared { tracks, summary })
 }
