@@ -131,3 +131,36 @@ fn a_controllable_share_sweep_keeps_the_arrivals_and_changes_the_types() {
     assert_eq!(ramp_types(&none).into_iter().collect::<Vec<_>>(), ["human_ramp"]);
     assert_eq!(ramp_types(&all).into_iter().collect::<Vec<_>>(), ["ctrl"]);
 }
+
+#[test]
+fn regression_fuzz_a_nan_begin_or_an_absurd_rate_is_refused_not_looped_on() {
+    let (base, geometry) = i80();
+    let text = std::fs::read_to_string(&base).unwrap();
+    let dir = out_dir("fuzzed");
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = DemandSpec {
+        scales: vec![1.0],
+        ramp_share: None,
+        controllable_shares: Vec::new(),
+        seeds: vec![0],
+        duration: 900.0,
+    };
+    for (from, to, needle) in [
+        (
+            "begin=\"0\"",
+            "begin=\"NaN\"",
+            "begin=\"NaN\" is not a non-negative number",
+        ),
+        (
+            "vehsPerHour=\"1240\"",
+            "vehsPerHour=\"1e300\"",
+            "would give about",
+        ),
+    ] {
+        let path = dir.join("base.rou.xml");
+        std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
+        let err = generate(&path, &geometry, &spec, &dir.join("out")).unwrap_err();
+        assert!(err.to_string().contains(needle), "{err}");
+        assert!(!dir.join("out").exists(), "nothing written");
+    }
+}

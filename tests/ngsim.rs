@@ -161,3 +161,21 @@ fn the_real_sample_loads_and_smoothing_barely_moves_its_reconstructed_traces() {
     eprintln!("sample: largest change {worst:.4} m, rms {rms:.5} m");
     assert!(worst < 0.1 && rms < 0.01, "largest {worst} m, rms {rms} m");
 }
+
+#[test]
+fn regression_fuzz_lanes_of_far_off_or_nan_lateral_positions_do_not_overflow() {
+    let ngsim = mpgdrive::ngsim::config::NgsimConfig::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/ngsim.toml"),
+    )
+    .unwrap();
+    let lanes = &ngsim.lanes;
+    let before_ramp_end = lanes.ramp_end - 1.0;
+    // 0 m is lane 1, one and a half lane widths lane 2; far right is the ramp before its end and the
+    // right-most freeway lane after it; far left (and NaN) lane 1.
+    assert_eq!(lanes.lane_at(0.0, before_ramp_end), 1);
+    assert_eq!(lanes.lane_at(1.5 * lanes.width, before_ramp_end), 2);
+    assert_eq!(lanes.lane_at(1e300, before_ramp_end), lanes.ramp_lane());
+    assert_eq!(lanes.lane_at(1e300, lanes.ramp_end + 1.0), lanes.target_lane());
+    assert_eq!(lanes.lane_at(-1e300, 0.0), 1);
+    assert_eq!(lanes.lane_at(f64::NAN, 0.0), 1);
+}

@@ -141,8 +141,12 @@ fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base,
             "flow" => {
                 let num = |k: &str| -> Result<f64, RoutesError> {
                     let v = attr(k).ok_or_else(|| bad(format!("flow without `{k}`")))?;
-                    v.parse()
-                        .map_err(|_| bad(format!("flow attribute {k}=\"{v}\" is not a number")))
+                    match v.parse::<f64>() {
+                        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+                        _ => Err(bad(format!(
+                            "flow attribute {k}=\"{v}\" is not a non-negative number"
+                        ))),
+                    }
                 };
                 let route = attr("route")
                     .ok_or_else(|| bad("flow without `route` (only route flows are supported)".into()))?;
@@ -196,6 +200,9 @@ fn xml_escape(s: &str) -> String {
         .replace('<', "&lt;")
 }
 
+/// The most vehicles one generated route file may hold.
+const MAX_VEHICLES: f64 = 1e7;
+
 /// Writes one route file per (scale, controllable share, seed) and `manifest.json` into
 /// `out`: `<stem>_d<scale>_s<seed>.rou.xml`, with `_c<share>` before `_s` when several shares
 /// are given.
@@ -247,6 +254,19 @@ pub fn generate(
         return Err(RoutesError::Invalid(
             "--ramp-share needs both ramp and freeway flows in the base file".into(),
         ));
+    }
+    // A bound on the work: Poisson arrivals at an absurd rate would never reach the end.
+    for &scale in &spec.scales {
+        let expected: f64 = base
+            .flows
+            .iter()
+            .map(|f| f.per_hour * scale * factor(f) / 3600.0 * (f.end.min(spec.duration) - f.begin).max(0.0))
+            .sum();
+        if expected > MAX_VEHICLES {
+            return Err(RoutesError::Invalid(format!(
+                "demand scale {scale} would give about {expected:.3e} vehicles in one file (at most {MAX_VEHICLES:e})"
+            )));
+        }
     }
     std::fs::create_dir_all(out).map_err(io(out))?;
     let stem = base_path

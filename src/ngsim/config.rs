@@ -58,13 +58,14 @@ impl LaneConfig {
 
     /// The lane at lateral position `x` and longitudinal position `y` (both m).
     pub fn lane_at(&self, x: f64, y: f64) -> u8 {
-        let k = (x / self.width).floor().max(0.0) as u64 + 1;
         let last = if y < self.ramp_end {
             self.ramp_lane()
         } else {
             self.freeway_lanes
         };
-        k.min(u64::from(last)) as u8
+        // Clamped before the conversion: a far-off (or NaN) position must not overflow.
+        let k = (x / self.width).floor().clamp(0.0, f64::from(last) - 1.0);
+        if k.is_nan() { 1 } else { k as u8 + 1 }
     }
 
     /// Lateral offset of lane `lane`'s centre from the target lane's centre, positive to the

@@ -106,7 +106,7 @@ pub struct Prepared {
 /// inside a run, one-sided at its ends; a run of one sample takes `isolated`.
 pub fn derivative(frames: &[u32], y: &[f64], dt: f64, isolated: impl Fn(usize) -> f64) -> Vec<f64> {
     let n = y.len();
-    let joined = |i: usize| i + 1 < n && frames[i + 1] == frames[i] + 1; // i and i + 1 adjacent
+    let joined = |i: usize| i + 1 < n && frames[i].checked_add(1) == Some(frames[i + 1]); // i and i + 1 adjacent
     (0..n)
         .map(|i| {
             let prev = i > 0 && joined(i - 1);
@@ -124,7 +124,7 @@ fn short_pieces(frames: &[u32], window: usize) -> usize {
     let mut count = 0;
     let mut start = 0;
     for i in 1..=frames.len() {
-        if i == frames.len() || frames[i] != frames[i - 1] + 1 {
+        if i == frames.len() || frames[i - 1].checked_add(1) != Some(frames[i]) {
             count += usize::from(i - start < window);
             start = i;
         }

@@ -73,7 +73,7 @@ pub fn savgol_segments(
     let mut out = Vec::with_capacity(y.len());
     let mut start = 0;
     for i in 1..=y.len() {
-        if i == y.len() || frames[i] != frames[i - 1] + 1 {
+        if i == y.len() || frames[i - 1].checked_add(1) != Some(frames[i]) {
             out.extend(savgol(&y[start..i], window, order)?);
             start = i;
         }
