@@ -224,11 +224,23 @@ pub fn load_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, Confi
 /// Parses TOML text into `T`; errors name `origin` and the line.
 pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, origin: &str) -> Result<T, ConfigError> {
     toml::from_str(text).map_err(|e| {
-        let line = e.span().map(|s| text[..s.start].matches('\n').count() + 1);
+        let line = e
+            .span()
+            .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
+        // The line itself (without its comment) names the key a type error is about.
+        let quoted = |l: usize| {
+            let source = text.lines().nth(l - 1).unwrap_or("");
+            let code = source.split(" #").next().unwrap_or(source).trim();
+            if code.is_empty() || code.len() > 80 {
+                String::new()
+            } else {
+                format!(" (`{code}`)")
+            }
+        };
         ConfigError::Parse {
             path: origin.to_string(),
             message: match line {
-                Some(l) => format!("line {l}: {}", e.message()),
+                Some(l) => format!("line {l}{}: {}", quoted(l), e.message()),
                 None => e.message().to_string(),
             },
         }

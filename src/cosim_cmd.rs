@@ -104,6 +104,13 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
     // Every input is checked before anything is written: the configuration, the geometry
     // against its network, the route files.
     let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
+    if args.attach.is_none() && (files.step_length - config.sim.dt).abs() > 1e-9 {
+        return Err(cosim::CosimError::StepLength {
+            sumo: files.step_length,
+            config: config.sim.dt,
+        }
+        .into());
+    }
     let merge = args
         .merge
         .clone()

@@ -73,6 +73,8 @@ pub struct ConfigFiles {
     pub routes: Vec<PathBuf>,
     /// `additional-files` (they may define routes and types).
     pub additional: Vec<PathBuf>,
+    /// `step-length` (s; SUMO's default, 1 s, when the configuration sets none).
+    pub step_length: f64,
 }
 
 /// Reads a `.sumocfg`: its root must be `<configuration>` (or `<sumoConfiguration>`) and it
@@ -103,10 +105,21 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
     let net = list("net-file")
         .pop()
         .ok_or_else(|| content(sumocfg, "names no network (<net-file value=\"...\"/>)".into()))?;
+    let step = doc.descendants().find(|n| n.has_tag_name("step-length"));
+    let step_length = match step.and_then(|n| n.attribute("value")) {
+        None => 1.0,
+        Some(v) => v
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .ok_or_else(|| content(sumocfg, format!("step-length {v:?} is not a positive number")))?,
+    };
     Ok(ConfigFiles {
         net,
         routes: list("route-files"),
         additional: list("additional-files"),
+        step_length,
     })
 }
 
