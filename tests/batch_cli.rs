@@ -182,7 +182,11 @@ fn a_malformed_route_file_is_a_failed_run_and_the_others_complete() {
             .unwrap();
     assert_eq!(broken["status"], "failed");
     let error = broken["error"].as_str().unwrap();
-    assert!(error.contains("SUMO error"), "{error}");
+    // Checked by the worker before SUMO starts.
+    assert!(
+        error.contains("broken.rou.xml") && error.contains("not well-formed XML"),
+        "{error}"
+    );
     let md = std::fs::read_to_string(out.join("summary.md")).unwrap();
     assert!(md.contains("3 runs: 2 ok, 1 failed."), "{md}");
 }

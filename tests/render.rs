@@ -370,6 +370,7 @@ fn reports_include_time_space_diagrams_and_batch_charts() {
         "| Metric | mpg |\n|---|---|\n| Egos | 1 |\n",
     )
     .unwrap();
+    std::fs::write(cosim.join("cosim.json"), "[]").unwrap();
     let ts = merge_trace();
     let layout = DiagramLayout::fit(&[&ts], (800, 450));
     timespace_png(&cosim.join("timespace_mpg.png"), &layout, &ts, "t", "driven").unwrap();
