@@ -116,7 +116,14 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
         .clone()
         .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
     let geometry = MergeGeometry::load(&merge)?;
-    mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometry, &merge)?;
+    let ssm_equipped =
+        mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometry, &merge)?;
+    if !ssm_equipped {
+        eprintln!(
+            "cosim: {} equips no vehicle with the SSM device: every vehicle gets one (the conflict metrics need it)",
+            args.sumocfg.display()
+        );
+    }
     let settings = CosimSettings {
         sumocfg: args.sumocfg.clone(),
         route_files: args.route_files.clone(),
@@ -138,6 +145,7 @@ pub fn run(args: CosimArgs) -> Result<std::process::ExitCode> {
         },
         out: args.out.clone(),
         timespace: !args.no_diagrams,
+        equip_ssm: !ssm_equipped,
     };
     // Every policy is loaded (and checked against the configuration) before the first run.
     let mut controllers = Vec::new();
@@ -221,6 +229,7 @@ fn write_outputs(out: &std::path::Path, runs: &[mpgdrive::sumo::cosim::Controlle
     )?;
     atomic::write(&out.join("cosim.json"), serde_json::to_string_pretty(runs)?)?;
     atomic::write(&out.join("egos.csv"), cosim::egos_csv(runs))?;
+    cosim::restore_ssm_outputs(runs)?;
     write_diagrams(out, runs)?;
     Ok(())
 }

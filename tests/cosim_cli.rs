@@ -73,6 +73,9 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
     let csv = std::fs::read_to_string(out_dir.join("egos.csv")).unwrap();
     assert!(csv.starts_with("controller,seed,id,"));
     for c in ["mpg", "sarl", "sumo"] {
+        // SUMO empties a finished run's SSM file when the next run starts: restored.
+        let ssm = std::fs::read_to_string(out_dir.join(format!("ssm-{c}.xml"))).unwrap();
+        assert!(roxmltree::Document::parse(&ssm).is_ok(), "ssm-{c}.xml: {ssm:?}");
         let png = image::open(out_dir.join(format!("timespace_{c}.png"))).unwrap();
         assert_eq!((png.width(), png.height()), (1600, 900), "{c}");
     }
@@ -345,4 +348,51 @@ fn the_gui_run_drives_sumo_gui_exactly_as_the_headless_run() {
     let headless = egos_of(&run(false));
     assert!(!headless.as_array().unwrap().is_empty(), "{headless}");
     assert_eq!(egos_of(&run(true)), headless);
+}
+
+#[test]
+fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
+    // A user's plain sumocfg and routes: no SSM device anywhere.
+    let dir = temp_dir("no-ssm");
+    let routes = std::fs::read_to_string("sumo_nets/single_lane_merge/merge.rou.xml")
+        .unwrap()
+        .replace("<param key=\"has.ssm.device\" value=\"true\"/>", "");
+    assert!(!routes.contains("ssm"));
+    std::fs::write(dir.join("r.rou.xml"), routes).unwrap();
+    let net = std::fs::canonicalize("sumo_nets/single_lane_merge/merge.net.xml").unwrap();
+    std::fs::write(
+        dir.join("plain.sumocfg"),
+        format!(
+            "<configuration><input><net-file value=\"{}\"/><route-files value=\"r.rou.xml\"/></input>\
+             <time><step-length value=\"0.1\"/></time></configuration>\n",
+            net.display()
+        ),
+    )
+    .unwrap();
+    std::fs::copy("sumo_nets/single_lane_merge/merge.toml", dir.join("merge.toml")).unwrap();
+    let out = bin()
+        .args([
+            "cosim",
+            "--controllers",
+            "sumo",
+            "--end",
+            "60",
+            "--json",
+            "--sumocfg",
+        ])
+        .arg(dir.join("plain.sumocfg"))
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("equips no vehicle with the SSM device"),
+        "{stderr}"
+    );
+    let ssm = std::fs::read_to_string(dir.join("out/ssm-sumo.xml")).unwrap();
+    assert!(roxmltree::Document::parse(&ssm).is_ok());
+    let runs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(!runs[0]["egos"].as_array().unwrap().is_empty());
 }

@@ -61,6 +61,9 @@ pub struct CosimSettings {
     pub out: PathBuf,
     /// Record each run's time-space diagram ([`ControllerRun::timespace`]).
     pub timespace: bool,
+    /// Equip every vehicle with SUMO's SSM device (when the inputs equip none: the conflict
+    /// metrics need it).
+    pub equip_ssm: bool,
 }
 
 /// Errors of a co-sim run.
@@ -159,6 +162,19 @@ pub struct ControllerRun {
     /// The run's time-space record, with SUMO's SSM conflicts marked (when asked for).
     #[serde(skip)]
     pub timespace: Option<TimeSpace>,
+    /// SUMO's SSM output file and its text as the run ended ([`restore_ssm_outputs`]).
+    #[serde(skip)]
+    pub ssm_output: Option<(PathBuf, String)>,
+}
+
+/// Writes each run's SSM output file again, as it was when its run ended. SUMO 1.15 empties the
+/// SSM file of a finished simulation when the next one in the process starts, so after a
+/// comparison every file but the last controller's was left empty.
+pub fn restore_ssm_outputs(runs: &[ControllerRun]) -> std::io::Result<()> {
+    for (path, text) in runs.iter().filter_map(|r| r.ssm_output.as_ref()) {
+        crate::atomic::write(path, text)?;
+    }
+    Ok(())
 }
 
 fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path) -> Vec<String> {
@@ -180,7 +196,17 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         absolute(ssm),
         "--tripinfo-output.write-unfinished".into(),
         "true".into(),
+        // The conflict definition of the metrics, whatever the configuration sets.
+        "--device.ssm.measures".into(),
+        "TTC,DRAC".into(),
+        "--device.ssm.thresholds".into(),
+        "3.0,3.0".into(),
+        "--device.ssm.range".into(),
+        "50.0".into(),
     ];
+    if settings.equip_ssm {
+        args.extend(["--device.ssm.probability".into(), "1".into()]);
+    }
     if let Some(routes) = &settings.route_files {
         args.extend(["--route-files".into(), absolute(routes)]);
     }
@@ -269,11 +295,16 @@ pub fn run_controller(
     let speed_overrides = controller.overridden;
     let mut timespace = controller.take_timespace();
     let records = controller.finish();
+    let ssm_output = match settings.launch {
+        Launch::Attach { .. } => None,
+        _ => Some((ssm.clone(), read_xml(&ssm)?)),
+    };
     let (ssm, trips) = match settings.launch {
         // The server owns the outputs of a shared simulation.
         Launch::Attach { .. } => (SsmRecord::default(), HashMap::new()),
         _ => (read_ssm(&ssm)?, read_tripinfo(&tripinfo)?),
     };
+
     if let Some(ts) = timespace.as_mut() {
         let marks: Vec<_> = ssm.worst.iter().filter_map(|(id, t)| ts.locate(id, *t)).collect();
         ts.conflicts = marks;
@@ -293,6 +324,7 @@ pub fn run_controller(
         per_step(timing.total_us),
     );
     run.timespace = timespace;
+    run.ssm_output = ssm_output;
     Ok(run)
 }
 
@@ -362,13 +394,20 @@ fn summarise(
         mean_max_drac: mean_of(&|e| e.ssm_max_drac),
         mean_travel_time: mean_of(&|e| e.travel_time),
         mean_time_loss: mean_of(&|e| e.time_loss),
-        vehicle_seconds: trips.values().map(|t| t.0).sum(),
+        // Summed in id order: the same run gives the same bits.
+        vehicle_seconds: trips
+            .iter()
+            .collect::<std::collections::BTreeMap<_, _>>()
+            .values()
+            .map(|t| t.0)
+            .sum(),
         egos,
         collisions,
         speed_overrides,
         sumo_us_per_step,
         controller_us_per_step,
         timespace: None,
+        ssm_output: None,
     }
 }
 

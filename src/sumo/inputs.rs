@@ -75,6 +75,9 @@ pub struct ConfigFiles {
     pub additional: Vec<PathBuf>,
     /// `step-length` (s; SUMO's default, 1 s, when the configuration sets none).
     pub step_length: f64,
+    /// The configuration equips vehicles with the SSM device itself (`device.ssm.probability`
+    /// or `device.ssm.explicit`).
+    pub ssm_option: bool,
 }
 
 /// Reads a `.sumocfg`: its root must be `<configuration>` (or `<sumoConfiguration>`) and it
@@ -115,11 +118,15 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
             .filter(|x| x.is_finite() && *x > 0.0)
             .ok_or_else(|| content(sumocfg, format!("step-length {v:?} is not a positive number")))?,
     };
+    let ssm_option = doc
+        .descendants()
+        .any(|n| n.has_tag_name("device.ssm.probability") || n.has_tag_name("device.ssm.explicit"));
     Ok(ConfigFiles {
         net,
         routes: list("route-files"),
         additional: list("additional-files"),
         step_length,
+        ssm_option,
     })
 }
 
@@ -182,8 +189,9 @@ pub fn check_geometry(geometry: &MergeGeometry, geometry_path: &Path, net: &Path
 }
 
 /// Checks route (and additional) files: well-formed XML, and every `route` a vehicle or flow
-/// names is defined in one of them (as a route or a route distribution).
-pub fn check_routes(files: &[PathBuf]) -> Result<(), InputError> {
+/// names is defined in one of them (as a route or a route distribution). Returns whether any
+/// of them equips vehicles with the SSM device (a `has.ssm.device` parameter set to true).
+pub fn check_routes(files: &[PathBuf]) -> Result<bool, InputError> {
     let texts: Vec<(PathBuf, String)> = files
         .iter()
         .map(|f| Ok((f.clone(), read(f)?)))
@@ -212,18 +220,23 @@ pub fn check_routes(files: &[PathBuf]) -> Result<(), InputError> {
             }
         }
     }
-    Ok(())
+    Ok(docs.iter().flat_map(|(_, d)| d.descendants()).any(|n| {
+        n.has_tag_name("param")
+            && n.attribute("key") == Some("has.ssm.device")
+            && n.attribute("value").is_some_and(|v| v.trim() == "true")
+    }))
 }
 
 /// Every check before a co-simulation, given the configuration's files: the geometry against
 /// its network, and the route files (`route_files`, a comma-separated list as SUMO takes it,
-/// replacing the configuration's when given).
+/// replacing the configuration's when given). Returns whether the inputs equip any vehicle
+/// with the SSM device.
 pub fn check_inputs(
     files: &ConfigFiles,
     route_files: Option<&Path>,
     geometry: &MergeGeometry,
     geometry_path: &Path,
-) -> Result<(), InputError> {
+) -> Result<bool, InputError> {
     check_geometry(geometry, geometry_path, &files.net)?;
     let mut routes = match route_files {
         Some(r) => r
@@ -234,5 +247,5 @@ pub fn check_inputs(
         None => files.routes.clone(),
     };
     routes.extend(files.additional.iter().cloned());
-    check_routes(&routes)
+    Ok(check_routes(&routes)? || files.ssm_option)
 }
