@@ -53,6 +53,7 @@ struct PolicyPair {
 
 mod batch_cmd;
 mod cosim_cmd;
+mod net_cmd;
 mod ngsim_cmd;
 mod report_cmd;
 
@@ -69,6 +70,8 @@ enum Command {
     Batch(batch_cmd::BatchArgs),
     /// Merge batch output directories (shards) into one summary.
     Merge(batch_cmd::MergeArgs),
+    /// SUMO networks: `net inspect NET.net.xml` finds the merges and proposes a merge.toml.
+    Net(net_cmd::NetArgs),
     /// NGSIM I-80: prepare (smooth, recompute, reassign lanes), eval (Table IV replay against
     /// the human drivers), synth (synthetic files in the official layouts).
     Ngsim(ngsim_cmd::NgsimArgs),
@@ -241,6 +244,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Batch(args) => batch_cmd::batch(args),
         Command::Merge(args) => batch_cmd::merge_dirs(args),
         Command::Ngsim(args) => ngsim_cmd::run(args),
+        Command::Net(args) => net_cmd::run(args),
         Command::Scenario(args) => report_cmd::run_scenario(args),
         Command::Report(args) => report_cmd::run_report(args),
         Command::Demo {

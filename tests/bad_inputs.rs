@@ -505,6 +505,19 @@ fn cases() -> Vec<Case> {
             vec!["--policy", "policies/mpg/seed0.json"],
             "directory",
         ),
+        // Networks.
+        c(
+            "net inspect of a missing file",
+            Vec::new(),
+            vec!["net", "inspect", "{D}/none.net.xml"],
+            "none.net.xml",
+        ),
+        c(
+            "net inspect of a file that is not a network",
+            vec![("r.net.xml", "<routes/>".into())],
+            vec!["net", "inspect", "{D}/r.net.xml"],
+            "not a SUMO network",
+        ),
         // NGSIM.
         ngsim(
             "prepare input missing",

@@ -14,6 +14,7 @@ pub mod geometry;
 #[cfg(feature = "sumo")]
 pub mod handle;
 pub mod inputs;
+pub mod inspect;
 
 #[cfg(feature = "sumo")]
 pub use controller::{ControlModes, Controller, ControllerKind, EgoRecord};

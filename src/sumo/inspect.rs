@@ -1,0 +1,174 @@
+//! `mpgdrive net inspect`: finds the merges of a SUMO network and proposes a `merge.toml`.
+//!
+//! A merge is a lane that ends (no connection leaves it) beside a lane of the same edge that
+//! goes on: the acceleration lane, and the target lane to its left. The ramp lanes are the
+//! acceleration lane and the lanes leading into it, followed back through the connections; the
+//! target lanes are the target lane and the lanes it continues from and into.
+
+use crate::sumo::inputs::InputError;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// One merge found in a network.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Merge {
+    /// The ramp lanes, upstream to downstream, the acceleration lane last.
+    pub ramp_lanes: Vec<String>,
+    /// The target lanes, upstream to downstream.
+    pub target_lanes: Vec<String>,
+    /// The target lane beside the acceleration lane.
+    pub target_lane: String,
+    /// Network x where the acceleration lane begins (m).
+    pub lane_start: f64,
+    /// Network x where the acceleration lane ends (m).
+    pub lane_end: f64,
+    /// Network x where the first ramp lane begins (m).
+    pub ramp_start: f64,
+}
+
+/// A lane: its edge, index and the x of its shape's ends.
+struct Lane {
+    edge: String,
+    index: u32,
+    start: f64,
+    end: f64,
+}
+
+/// At most this many lanes are followed in each direction.
+const CHAIN: usize = 12;
+
+/// The merges of the network in `net`, in the order of their acceleration lanes' ids.
+pub fn find_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
+    let text = std::fs::read_to_string(net).map_err(|source| InputError::Read {
+        path: net.to_path_buf(),
+        source,
+    })?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| InputError::Xml {
+        path: net.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    if doc.root_element().tag_name().name() != "net" {
+        return Err(InputError::Content {
+            path: net.to_path_buf(),
+            message: "not a SUMO network (root element is not <net>)".into(),
+        });
+    }
+    let mut lanes: BTreeMap<String, Lane> = BTreeMap::new();
+    for edge in doc.root_element().children().filter(|n| n.has_tag_name("edge")) {
+        let Some(id) = edge.attribute("id").filter(|id| !id.starts_with(':')) else {
+            continue;
+        };
+        for lane in edge.children().filter(|n| n.has_tag_name("lane")) {
+            let xs: Vec<f64> = lane
+                .attribute("shape")
+                .unwrap_or("")
+                .split_whitespace()
+                .filter_map(|p| p.split(',').next()?.parse().ok())
+                .collect();
+            let (Some(lane_id), Some(index), Some(&start), Some(&end)) = (
+                lane.attribute("id"),
+                lane.attribute("index").and_then(|i| i.parse().ok()),
+                xs.first(),
+                xs.last(),
+            ) else {
+                continue;
+            };
+            lanes.insert(
+                lane_id.to_owned(),
+                Lane {
+                    edge: id.to_owned(),
+                    index,
+                    start,
+                    end,
+                },
+            );
+        }
+    }
+    let lane_id = |edge: &str, index: &str| format!("{edge}_{index}");
+    // Connections between lanes of normal edges: (from lane, to lane), in file order.
+    let links: Vec<(String, String)> = doc
+        .root_element()
+        .children()
+        .filter(|n| n.has_tag_name("connection"))
+        .filter_map(|n| {
+            let from = lane_id(n.attribute("from")?, n.attribute("fromLane")?);
+            let to = lane_id(n.attribute("to")?, n.attribute("toLane")?);
+            (lanes.contains_key(&from) && lanes.contains_key(&to)).then_some((from, to))
+        })
+        .collect();
+    let continues = |lane: &str| links.iter().any(|(f, _)| f == lane);
+    let chain = |first: &str, forward: bool| {
+        let mut out = vec![first.to_owned()];
+        while out.len() < CHAIN {
+            let last = out.last().expect("not empty");
+            let next = links.iter().find_map(|(f, t)| match forward {
+                true if f == last => Some(t.clone()),
+                false if t == last => Some(f.clone()),
+                _ => None,
+            });
+            match next {
+                Some(n) if !out.contains(&n) => out.push(n),
+                _ => break,
+            }
+        }
+        if !forward {
+            out.reverse();
+        }
+        out
+    };
+    let mut merges = Vec::new();
+    for (id, lane) in &lanes {
+        let left = lane_id(&lane.edge, &(lane.index + 1).to_string());
+        if continues(id) || !lanes.contains_key(&left) || !continues(&left) {
+            continue;
+        }
+        let ramp_lanes = chain(id, false);
+        let mut target_lanes = chain(&left, false);
+        target_lanes.extend(chain(&left, true).into_iter().skip(1));
+        let ramp_start = lanes[&ramp_lanes[0]].start;
+        merges.push(Merge {
+            ramp_lanes,
+            target_lanes,
+            target_lane: left,
+            lane_start: lane.start,
+            lane_end: lane.end,
+            ramp_start,
+        });
+    }
+    Ok(merges)
+}
+
+fn quoted(list: &[String]) -> String {
+    let items: Vec<String> = list.iter().map(|l| format!("\"{l}\"")).collect();
+    format!("[{}]", items.join(", "))
+}
+
+/// Where the conflict point goes: 20 m before the end of the acceleration lane (a vehicle's
+/// centre never reaches the very end: SUMO stops it there), within the lane.
+pub const BEFORE_END: f64 = 20.0;
+
+/// A commented `merge.toml` for `merge` of the network `net`: the conflict point
+/// [`BEFORE_END`] before the end of the acceleration lane, egos picked up 120 m before it.
+pub fn proposal(merge: &Merge, net: &Path) -> String {
+    let x_c = (merge.lane_end - BEFORE_END).max(0.5 * (merge.lane_start + merge.lane_end));
+    let control_from = (x_c - 120.0).max(merge.ramp_start);
+    format!(
+        "# merge.toml proposed by `mpgdrive net inspect {net}`: check it, then save it next to the\n\
+         # .sumocfg (cosim and batch read it from there, or from --merge). Units: m. x is the network\n\
+         # x coordinate of a vehicle's centre, so the freeway must run along +x.\n\
+         conflict_point = {x_c:.1}          # 20 m before the end of the acceleration lane `{accel}` (x = {end:.1}):\n\
+         #                                  ramp vehicles join the target lane here; SUMO stops them at the end\n\
+         control_from = {control_from:.1}            # egos are picked up here, 120 m before x_c at most (training starts them\n\
+         #                                  40-120 m before)\n\
+         release_after = 50.0             # a merged ego is released 50 m past x_c\n\
+         ramp_lanes = {ramp}\n\
+         target_lanes = {target}\n\
+         controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
+         players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n",
+        net = net.display(),
+        accel = merge.ramp_lanes.last().map_or("", String::as_str),
+        end = merge.lane_end,
+        ramp = quoted(&merge.ramp_lanes),
+        target = quoted(&merge.target_lanes),
+    )
+}
