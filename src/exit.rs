@@ -83,6 +83,12 @@ impl UserFacing for crate::sumo::cosim::CosimError {
     }
 }
 
+impl UserFacing for crate::sumo::inputs::InputError {
+    fn is_user_error(&self) -> bool {
+        true // a SUMO input (configuration, network, routes, merge.toml) that does not fit
+    }
+}
+
 impl UserFacing for crate::ngsim::load::NgsimError {
     fn is_user_error(&self) -> bool {
         true // a missing or malformed data file

@@ -37,12 +37,6 @@ pub enum InputError {
     },
 }
 
-impl crate::exit::UserFacing for InputError {
-    fn is_user_error(&self) -> bool {
-        true
-    }
-}
-
 fn read(path: &Path) -> Result<String, InputError> {
     std::fs::read_to_string(path).map_err(|source| InputError::Read {
         path: path.to_path_buf(),
