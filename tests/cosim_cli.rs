@@ -15,6 +15,24 @@ fn temp_dir(name: &str) -> PathBuf {
     common::fresh_dir(&format!("cosim-{name}"))
 }
 
+/// A plain sumocfg in `dir` over the single-lane network with route file `routes` (relative to
+/// `dir`), a 0.1 s step, and the network's merge.toml beside it.
+fn plain_sumocfg(dir: &Path, name: &str, routes: &str) -> PathBuf {
+    let net = std::fs::canonicalize("sumo_nets/single_lane_merge/merge.net.xml").unwrap();
+    let path = dir.join(name);
+    std::fs::write(
+        &path,
+        format!(
+            "<configuration><input><net-file value=\"{}\"/><route-files value=\"{routes}\"/></input>\
+             <time><step-length value=\"0.1\"/></time></configuration>\n",
+            net.display()
+        ),
+    )
+    .unwrap();
+    std::fs::copy("sumo_nets/single_lane_merge/merge.toml", dir.join("merge.toml")).unwrap();
+    path
+}
+
 /// Exit code 2, one line on stderr containing every needle, no panic.
 fn assert_rejected(out: &Output, needles: &[&str]) {
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -162,22 +180,12 @@ fn unknown_merge_keys_and_missing_files_are_refused() {
 #[test]
 fn route_files_are_checked_before_sumo_starts_and_sumo_names_the_rest() {
     let dir = temp_dir("routes");
-    let net = std::fs::canonicalize("sumo_nets/single_lane_merge/merge.net.xml").unwrap();
-    std::fs::write(
-        dir.join("bad.sumocfg"),
-        format!(
-            "<configuration><input><net-file value=\"{}\"/><route-files value=\"bad.rou.xml\"/></input>\
-             <time><step-length value=\"0.1\"/></time></configuration>\n",
-            net.display()
-        ),
-    )
-    .unwrap();
-    std::fs::copy("sumo_nets/single_lane_merge/merge.toml", dir.join("merge.toml")).unwrap();
+    let cfg = plain_sumocfg(&dir, "bad.sumocfg", "bad.rou.xml");
     let run = |routes: &str, out: &str| {
         std::fs::write(dir.join("bad.rou.xml"), routes).unwrap();
         bin()
             .args(["cosim", "--controllers", "sumo", "--end", "5", "--sumocfg"])
-            .arg(dir.join("bad.sumocfg"))
+            .arg(&cfg)
             .arg("--out")
             .arg(dir.join(out))
             .output()
@@ -359,17 +367,7 @@ fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
         .replace("<param key=\"has.ssm.device\" value=\"true\"/>", "");
     assert!(!routes.contains("ssm"));
     std::fs::write(dir.join("r.rou.xml"), routes).unwrap();
-    let net = std::fs::canonicalize("sumo_nets/single_lane_merge/merge.net.xml").unwrap();
-    std::fs::write(
-        dir.join("plain.sumocfg"),
-        format!(
-            "<configuration><input><net-file value=\"{}\"/><route-files value=\"r.rou.xml\"/></input>\
-             <time><step-length value=\"0.1\"/></time></configuration>\n",
-            net.display()
-        ),
-    )
-    .unwrap();
-    std::fs::copy("sumo_nets/single_lane_merge/merge.toml", dir.join("merge.toml")).unwrap();
+    let cfg = plain_sumocfg(&dir, "plain.sumocfg", "r.rou.xml");
     let out = bin()
         .args([
             "cosim",
@@ -380,7 +378,7 @@ fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
             "--json",
             "--sumocfg",
         ])
-        .arg(dir.join("plain.sumocfg"))
+        .arg(&cfg)
         .arg("--out")
         .arg(dir.join("out"))
         .output()

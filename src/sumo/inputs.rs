@@ -124,8 +124,11 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
     })
 }
 
-/// A network's lanes: id and the x range of its shape (m).
-fn network_lanes(net: &Path) -> Result<Vec<(String, f64, f64)>, InputError> {
+/// Reads the network in `net` (XML with a `<net>` root) and hands it to `f`.
+pub(crate) fn with_network<T>(
+    net: &Path,
+    f: impl FnOnce(&roxmltree::Document) -> T,
+) -> Result<T, InputError> {
     let text = read(net)?;
     let doc = parse(net, &text)?;
     if doc.root_element().tag_name().name() != "net" {
@@ -134,20 +137,31 @@ fn network_lanes(net: &Path) -> Result<Vec<(String, f64, f64)>, InputError> {
             "not a SUMO network (root element is not <net>)".into(),
         ));
     }
-    let mut lanes = Vec::new();
-    for lane in doc.descendants().filter(|n| n.has_tag_name("lane")) {
-        let Some(id) = lane.attribute("id") else { continue };
-        let xs: Vec<f64> = lane
-            .attribute("shape")
-            .unwrap_or("")
-            .split_whitespace()
-            .filter_map(|p| p.split(',').next()?.parse().ok())
-            .collect();
-        let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        lanes.push((id.to_owned(), lo, hi));
-    }
-    Ok(lanes)
+    Ok(f(&doc))
+}
+
+/// The x coordinates of a `<lane>`'s shape, in order (m).
+pub(crate) fn shape_xs(lane: roxmltree::Node) -> Vec<f64> {
+    lane.attribute("shape")
+        .unwrap_or("")
+        .split_whitespace()
+        .filter_map(|p| p.split(',').next()?.parse().ok())
+        .collect()
+}
+
+/// A network's lanes: id and the x range of its shape (m).
+fn network_lanes(net: &Path) -> Result<Vec<(String, f64, f64)>, InputError> {
+    with_network(net, |doc| {
+        doc.descendants()
+            .filter(|n| n.has_tag_name("lane"))
+            .filter_map(|lane| {
+                let xs = shape_xs(lane);
+                let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
+                let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                Some((lane.attribute("id")?.to_owned(), lo, hi))
+            })
+            .collect()
+    })
 }
 
 /// Checks `geometry` against the network: its lanes exist, and the conflict point lies within

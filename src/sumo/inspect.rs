@@ -5,7 +5,7 @@
 //! acceleration lane and the lanes leading into it, followed back through the connections; the
 //! target lanes are the target lane and the lanes it continues from and into.
 
-use crate::sumo::inputs::InputError;
+use crate::sumo::inputs::{InputError, shape_xs, with_network};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -39,32 +39,17 @@ const CHAIN: usize = 12;
 
 /// The merges of the network in `net`, in the order of their acceleration lanes' ids.
 pub fn find_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
-    let text = std::fs::read_to_string(net).map_err(|source| InputError::Read {
-        path: net.to_path_buf(),
-        source,
-    })?;
-    let doc = roxmltree::Document::parse(&text).map_err(|e| InputError::Xml {
-        path: net.to_path_buf(),
-        message: e.to_string(),
-    })?;
-    if doc.root_element().tag_name().name() != "net" {
-        return Err(InputError::Content {
-            path: net.to_path_buf(),
-            message: "not a SUMO network (root element is not <net>)".into(),
-        });
-    }
+    with_network(net, merges_of)
+}
+
+fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
     let mut lanes: BTreeMap<String, Lane> = BTreeMap::new();
     for edge in doc.root_element().children().filter(|n| n.has_tag_name("edge")) {
         let Some(id) = edge.attribute("id").filter(|id| !id.starts_with(':')) else {
             continue;
         };
         for lane in edge.children().filter(|n| n.has_tag_name("lane")) {
-            let xs: Vec<f64> = lane
-                .attribute("shape")
-                .unwrap_or("")
-                .split_whitespace()
-                .filter_map(|p| p.split(',').next()?.parse().ok())
-                .collect();
+            let xs = shape_xs(lane);
             let (Some(lane_id), Some(index), Some(&start), Some(&end)) = (
                 lane.attribute("id"),
                 lane.attribute("index").and_then(|i| i.parse().ok()),
@@ -135,7 +120,7 @@ pub fn find_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
             ramp_start,
         });
     }
-    Ok(merges)
+    merges
 }
 
 fn quoted(list: &[String]) -> String {
