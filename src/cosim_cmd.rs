@@ -225,7 +225,13 @@ fn write_outputs(out: &std::path::Path, runs: &[mpgdrive::sumo::cosim::Controlle
     let command: Vec<String> = std::env::args().collect();
     atomic::write(
         &out.join("cosim.md"),
-        format!("Command: `{}`\n\n{}", command.join(" "), cosim::markdown(runs)),
+        format!(
+            "Command: `{}`\n\nmpgdrive {}, {}.\n\n{}",
+            command.join(" "),
+            mpgdrive::VERSION,
+            runs.first().map_or("SUMO not run", |r| r.sumo_version.as_str()),
+            cosim::markdown(runs)
+        ),
     )?;
     atomic::write(&out.join("cosim.json"), serde_json::to_string_pretty(runs)?)?;
     atomic::write(&out.join("egos.csv"), cosim::egos_csv(runs))?;

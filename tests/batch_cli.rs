@@ -103,6 +103,7 @@ fn a_small_batch_runs_every_combination_and_summarises_them() {
     )
     .unwrap();
     assert_eq!(result["status"], "ok");
+    assert!(result["sumo_version"].as_str().unwrap().starts_with("SUMO 1."));
     let egos = result["metrics"]["egos"].as_u64().unwrap();
     assert!(egos > 0);
     assert!(

@@ -77,6 +77,11 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
         // 300 ramp vehicles per hour: a 60 s run picks up a few egos.
         assert!(!r["egos"].as_array().unwrap().is_empty(), "{r}");
         assert_eq!(r["seed"], 0);
+        assert!(
+            r["sumo_version"].as_str().unwrap().starts_with("SUMO 1."),
+            "{}",
+            r["sumo_version"]
+        );
         assert!((r["simulated"].as_f64().unwrap() - 60.0).abs() < 1e-9);
     }
     for file in [

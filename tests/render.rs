@@ -313,6 +313,7 @@ fn reports_include_time_space_diagrams_and_batch_charts() {
                     status: "ok".into(),
                     error: None,
                     version: "test".into(),
+                    sumo_version: None,
                     command: Vec::new(),
                     wall_seconds: 1.0,
                     metrics: Some(RunMetrics {

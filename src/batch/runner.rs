@@ -100,7 +100,8 @@ fn manifest_entry(
 }
 
 /// The metrics of a worker's `cosim --json` output (one controller).
-fn metrics_of(stdout: &str) -> Result<RunMetrics, String> {
+/// Also SUMO's version, when the output names it.
+fn metrics_of(stdout: &str) -> Result<(RunMetrics, Option<String>), String> {
     let runs: serde_json::Value =
         serde_json::from_str(stdout).map_err(|e| format!("worker output is not JSON: {e}"))?;
     let r = &runs[0];
@@ -114,7 +115,7 @@ fn metrics_of(stdout: &str) -> Result<RunMetrics, String> {
             .map(|x| x as usize)
             .ok_or_else(|| format!("worker output lacks a count: {v}"))
     };
-    Ok(RunMetrics {
+    let metrics = RunMetrics {
         egos: count(&s["episodes"])?,
         unfinished: count(&r["unfinished"])?,
         collisions: count(&s["collisions"])?,
@@ -132,7 +133,8 @@ fn metrics_of(stdout: &str) -> Result<RunMetrics, String> {
                 })
                 .count()
         }),
-    })
+    };
+    Ok((metrics, r["sumo_version"].as_str().map(str::to_owned)))
 }
 
 /// The last non-empty line of a log: the worker's error message.
@@ -271,10 +273,11 @@ pub fn run_batch(
                 seed: r.combo.seed,
                 status: if outcome.is_ok() { "ok" } else { "failed" }.into(),
                 error: outcome.as_ref().err().cloned(),
+                sumo_version: outcome.as_ref().ok().and_then(|(_, v)| v.clone()),
                 version: crate::VERSION.into(),
                 command: r.command,
                 wall_seconds: r.started.elapsed().as_secs_f64(),
-                metrics: outcome.ok(),
+                metrics: outcome.ok().map(|(m, _)| m),
             };
             let json = serde_json::to_string_pretty(&result).expect("result serialises");
             atomic::write(&result_path(&r.combo), json)?;

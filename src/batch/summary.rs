@@ -66,6 +66,9 @@ pub struct RunResult {
     pub error: Option<String>,
     /// mpgdrive version.
     pub version: String,
+    /// SUMO's version, as the worker reported it (none in older result files).
+    #[serde(default)]
+    pub sumo_version: Option<String>,
     /// The worker's command line.
     pub command: Vec<String>,
     /// Wall time of the run (s; not part of the summary).

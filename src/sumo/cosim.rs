@@ -131,6 +131,8 @@ pub struct ControllerRun {
     pub controller: ControllerKind,
     /// SUMO seed.
     pub seed: u64,
+    /// SUMO's version ("SUMO 1.15.0").
+    pub sumo_version: String,
     /// Simulated time (s).
     pub simulated: f64,
     /// Steps run.
@@ -256,6 +258,7 @@ pub fn run_controller(
         Launch::Attach { port, order } => Sumo::attach(port, order)?,
     };
     let dt = sumo.delta_t()?;
+    let sumo_version = sumo.version()?;
     if (dt - config.sim.dt).abs() > 1e-9 {
         return Err(CosimError::StepLength {
             sumo: dt,
@@ -325,6 +328,7 @@ pub fn run_controller(
     );
     run.timespace = timespace;
     run.ssm_output = ssm_output;
+    run.sumo_version = sumo_version;
     Ok(run)
 }
 
@@ -386,6 +390,7 @@ fn summarise(
     ControllerRun {
         controller,
         seed,
+        sumo_version: String::new(),
         simulated,
         steps,
         summary: Summary::of(&metrics),

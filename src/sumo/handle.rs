@@ -341,6 +341,15 @@ impl Sumo {
         self.vehicle_string(id, c::MpgVehicleString_MPG_ROAD_ID)
     }
 
+    /// SUMO's version string, as SUMO reports it ("SUMO 1.15.0").
+    pub fn version(&self) -> Result<String, SumoError> {
+        let mut buf = std::ptr::null();
+        let mut len = 0usize;
+        // SAFETY: the out-pointers are valid for writes for the duration of the call.
+        let rc = unsafe { (self.api.version)(&mut buf, &mut len) };
+        self.strings("version", rc, buf, len)
+    }
+
     /// Vehicle type id of a vehicle.
     pub fn type_id(&self, id: &str) -> Result<String, SumoError> {
         self.vehicle_string(id, c::MpgVehicleString_MPG_TYPE_ID)

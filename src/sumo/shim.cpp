@@ -103,6 +103,10 @@ int MPG_FN(time)(double* out) { return guarded([&] { *out = api::Simulation::get
 
 int MPG_FN(delta_t)(double* out) { return guarded([&] { *out = api::Simulation::getDeltaT(); }); }
 
+int MPG_FN(version)(const char** buf, size_t* len) {
+    return guarded([&] { put_string(api::Simulation::getVersion().second, buf, len); });
+}
+
 int MPG_FN(min_expected)(int* out) {
     return guarded([&] { *out = api::Simulation::getMinExpectedNumber(); });
 }

@@ -77,6 +77,8 @@ int MPG_FN(close)(void);
 int MPG_FN(time)(double* out);
 int MPG_FN(delta_t)(double* out);
 int MPG_FN(min_expected)(int* out);
+/* SUMO's version string ("SUMO 1.15.0"). */
+int MPG_FN(version)(const char** buf, size_t* len);
 int MPG_FN(id_list)(int which, const char** buf, size_t* len);
 int MPG_FN(collisions)(size_t* count);
 int MPG_FN(collision)(size_t index, MpgCollision* out);
