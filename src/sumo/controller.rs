@@ -267,7 +267,7 @@ impl Controller {
         self.timespace = Some(TimeSpace::new(self.dt));
     }
 
-    /// The time-space record so far (empty unless [`Controller::record_timespace`] was called).
+    /// The time-space record so far (none unless [`Controller::record_timespace`] was called).
     pub fn take_timespace(&mut self) -> Option<TimeSpace> {
         self.timespace.take()
     }
