@@ -109,6 +109,23 @@ fn cases() -> Vec<Case> {
         args.extend(extra);
         c(name, Vec::new(), args, needle)
     };
+    // A base route file written into the case's folder, with the I-80 geometry.
+    let routes_base = |name, text: String, needle| {
+        c(
+            name,
+            vec![("b.rou.xml", text)],
+            vec![
+                "routes",
+                "--base",
+                "{D}/b.rou.xml",
+                "--merge",
+                "sumo_nets/i80_merge/merge.toml",
+                "--out",
+                "{D}/out",
+            ],
+            needle,
+        )
+    };
     let batch = |name, files: Vec<(&'static str, String)>, extra: Vec<&'static str>, needle| {
         let mut args = vec!["batch", "--controllers", "sumo", "--end", "5", "--out", "{D}/out"];
         args.extend(extra);
@@ -352,35 +369,10 @@ fn cases() -> Vec<Case> {
         ),
         // Route generation.
         routes("missing base", vec!["--base", "{D}/none.rou.xml"], "none.rou.xml"),
-        c(
-            "base not XML",
-            vec![("b.rou.xml", "<routes".into())],
-            vec![
-                "routes",
-                "--base",
-                "{D}/b.rou.xml",
-                "--merge",
-                "sumo_nets/i80_merge/merge.toml",
-                "--out",
-                "{D}/out",
-            ],
-            "b.rou.xml",
-        ),
-        c(
+        routes_base("base not XML", "<routes".into(), "b.rou.xml"),
+        routes_base(
             "base with a NaN begin",
-            vec![(
-                "b.rou.xml",
-                read("sumo_nets/i80_merge/i80.rou.xml").replacen("begin=\"0\"", "begin=\"NaN\"", 1),
-            )],
-            vec![
-                "routes",
-                "--base",
-                "{D}/b.rou.xml",
-                "--merge",
-                "sumo_nets/i80_merge/merge.toml",
-                "--out",
-                "{D}/out",
-            ],
+            read("sumo_nets/i80_merge/i80.rou.xml").replacen("begin=\"0\"", "begin=\"NaN\"", 1),
             "begin=\"NaN\"",
         ),
         routes("scales not numbers", vec!["--scales", "a,b"], "--scales"),
