@@ -6,10 +6,10 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use mpgdrive::config::Config;
+use mpgdrive::engine::rollout::{Recording, RolloutOptions, rollout};
 use mpgdrive::policy::{LinearPolicy, PolicyActor};
-use mpgdrive::sim::Driver;
-use mpgdrive::sim::rollout::{Recording, RolloutOptions, rollout};
-use mpgdrive::sim::sampler::sample_scenes;
+use mpgdrive::world::Driver;
+use mpgdrive::world::sampler::sample_scenes;
 use std::path::Path;
 
 const SCENARIOS: usize = 500;

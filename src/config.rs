@@ -91,7 +91,7 @@ pub struct SimConfig {
     /// apart instead of bumper to bumper.
     pub safety_gap: f64,
     /// With `feasibility`: also hold a ramp vehicle able to stop before `x_c` while entering
-    /// the target lane is not safe (the merge gate, [`crate::sim::merge_gate`]). Off when
+    /// the target lane is not safe (the merge gate, [`crate::world::merge_gate`]). Off when
     /// absent (files written before it existed).
     #[serde(default)]
     pub merge_gate: bool,
@@ -284,6 +284,15 @@ impl Config {
         let config: Config = parse_toml(text, origin)?;
         config.validate()?;
         Ok(config)
+    }
+
+    /// This configuration at another conflict point: a network's or a dataset's `x_c`, whose
+    /// file validated it. The one way the world's geometry enters a configuration (the SUMO
+    /// controller, the NGSIM replay and the synthetic NGSIM files).
+    pub fn at_conflict_point(&self, conflict_point: f64) -> Config {
+        let mut c = self.clone();
+        c.scenario.conflict_point = conflict_point;
+        c
     }
 
     /// Total number of players `N` (ego, leaders and followers).

@@ -7,6 +7,7 @@
 pub mod atomic;
 pub mod batch;
 pub mod config;
+pub mod engine;
 pub mod eval;
 pub mod exit;
 pub mod game;
@@ -15,10 +16,9 @@ pub mod num;
 pub mod policy;
 pub mod render;
 pub mod report;
-pub mod scenario;
-pub mod sim;
 pub mod sumo;
 pub mod train;
+pub mod world;
 
 pub use config::{Config, ConfigError};
 

@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use mpgdrive::config::Config;
-use mpgdrive::sim::state::{Scene, Vehicle};
+use mpgdrive::world::state::{Scene, Vehicle};
 use std::path::Path;
 
 /// The tiny test setting.

@@ -6,12 +6,13 @@
 mod common;
 
 use common::paper;
+use mpgdrive::engine::rollout::{Recording, RolloutOptions, rollout};
 use mpgdrive::policy::PolicyActor;
 use mpgdrive::policy::file::load;
-use mpgdrive::sim::rollout::{Driver, Recording, RolloutOptions, rollout};
-use mpgdrive::sim::sampler::{Purpose, purpose_seed, sample_scenes};
-use mpgdrive::sim::state::Scene;
 use mpgdrive::sumo::{Backend, ControlModes, Controller, ControllerKind, MergeGeometry, NewVehicle, Sumo};
+use mpgdrive::world::drivers::Driver;
+use mpgdrive::world::sampler::{Purpose, purpose_seed, sample_scenes};
+use mpgdrive::world::state::Scene;
 use std::path::Path;
 use std::sync::Mutex;
 

@@ -1,8 +1,8 @@
 //! Eq. (1) and the action clipping, against hand-computed kinematics.
 
 use approx::assert_abs_diff_eq;
-use mpgdrive::sim::dynamics::{Axles, Kinematics, bicycle_step};
-use mpgdrive::sim::safety::clip_action;
+use mpgdrive::world::dynamics::{Axles, Kinematics, bicycle_step};
+use mpgdrive::world::safety::clip_action;
 
 const AXLES: Axles = Axles { l_f: 1.2, l_r: 1.6 };
 

@@ -4,11 +4,11 @@ mod common;
 
 use approx::assert_abs_diff_eq;
 use common::{car, scene, smoke};
-use mpgdrive::game::mpg_check::{CheckSettings, check_mpg};
+use mpgdrive::eval::mpg_check::{CheckSettings, check_mpg};
 use mpgdrive::game::terms::{comfort, conflict_time_gap, same_lane_ttc, speed_tracking};
-use mpgdrive::game::{PairReward, PaperReward, StepRewards};
-use mpgdrive::sim::sampler::sample_scene;
-use mpgdrive::sim::state::Vehicle;
+use mpgdrive::game::{PairReward, PairTerms, PaperReward, StepRewards};
+use mpgdrive::world::sampler::sample_scene;
+use mpgdrive::world::state::Vehicle;
 use proptest::prelude::*;
 
 #[test]
@@ -133,8 +133,8 @@ proptest! {
         let reward = PaperReward::new(&smoke());
         let a = car(xi, vi, ri);
         let b = car(xj, vj, rj);
-        let (r_ab, _, _) = reward.pair(0, 1, &a, &b);
-        let (r_ba, _, _) = reward.pair(1, 0, &b, &a);
+        let r_ab = reward.pair(0, 1, &a, &b).reward;
+        let r_ba = reward.pair(1, 0, &b, &a).reward;
         prop_assert_eq!(r_ab, r_ba);
         prop_assert!(r_ab.is_finite() && r_ab <= 0.0);
     }
@@ -144,9 +144,13 @@ proptest! {
 struct Asymmetric(PaperReward);
 
 impl PairReward for Asymmetric {
-    fn pair(&self, i: usize, j: usize, a: &Vehicle, b: &Vehicle) -> (f64, f64, f64) {
-        let (r, t, c) = self.0.pair(i, j, a, b);
-        if i > j { (1.5 * r, t, c) } else { (r, t, c) }
+    fn pair(&self, i: usize, j: usize, a: &Vehicle, b: &Vehicle) -> PairTerms {
+        let terms = self.0.pair(i, j, a, b);
+        let scale = if i > j { 1.5 } else { 1.0 };
+        PairTerms {
+            reward: scale * terms.reward,
+            ..terms
+        }
     }
     fn is_symmetric(&self) -> bool {
         false

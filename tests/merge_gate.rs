@@ -4,8 +4,8 @@ mod common;
 
 use approx::assert_abs_diff_eq;
 use common::{car, scene};
-use mpgdrive::sim::merge_gate::{GateRules, STOP_MARGIN, entry_is_safe, gate_holds, stop_bound};
-use mpgdrive::sim::state::Vehicle;
+use mpgdrive::world::merge_gate::{GateRules, STOP_MARGIN, entry_is_safe, gate_holds, stop_bound};
+use mpgdrive::world::state::Vehicle;
 
 /// x_c = 180 m, 5 m cars with a 2 m safety gap, b_safe = 4 m/s^2, tau_s = 3 s, braking at up
 /// to g = 9.81 m/s^2, dt = 0.1 s.

@@ -4,13 +4,13 @@ mod common;
 
 use approx::assert_abs_diff_eq;
 use common::{car, scene, smoke};
+use mpgdrive::engine::rollout::{Actor, DriverActor, Recording, RolloutOptions, rollout};
 use mpgdrive::eval::EpisodeMetrics;
-use mpgdrive::sim::Driver;
-use mpgdrive::sim::neighbors::Neighbors;
-use mpgdrive::sim::rollout::{Actor, DriverActor, Recording, RolloutOptions, rollout};
-use mpgdrive::sim::safety::ttc;
-use mpgdrive::sim::sampler::sample_scenes;
-use mpgdrive::sim::state::Scene;
+use mpgdrive::world::Driver;
+use mpgdrive::world::neighbors::Neighbors;
+use mpgdrive::world::safety::ttc;
+use mpgdrive::world::sampler::sample_scenes;
+use mpgdrive::world::state::Scene;
 
 fn opts(config: &mpgdrive::Config, threads: usize) -> RolloutOptions {
     RolloutOptions {
@@ -21,7 +21,7 @@ fn opts(config: &mpgdrive::Config, threads: usize) -> RolloutOptions {
 }
 
 /// One scene, every player at constant speed, fully recorded.
-fn constant_speed(config: &mpgdrive::Config, s: mpgdrive::sim::Scene) -> mpgdrive::sim::EpisodeOutcome {
+fn constant_speed(config: &mpgdrive::Config, s: mpgdrive::world::Scene) -> mpgdrive::engine::EpisodeOutcome {
     rollout(config, &opts(config, 1), &[s], || {
         DriverActor::new(config, Driver::ConstSpeed, Driver::ConstSpeed)
     })
@@ -208,7 +208,7 @@ impl Actor for Fixed {
 }
 
 /// Smallest bumper gap between successive target-lane players over a recorded episode.
-fn min_platoon_gap(out: &mpgdrive::sim::EpisodeOutcome, n: usize, length: f64) -> f64 {
+fn min_platoon_gap(out: &mpgdrive::engine::EpisodeOutcome, n: usize, length: f64) -> f64 {
     let t = out.trajectory.as_ref().unwrap();
     t.states
         .chunks(n)

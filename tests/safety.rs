@@ -1,8 +1,8 @@
 //! TTC, the feasible interval and bounding boxes on worked cases.
 
 use approx::assert_abs_diff_eq;
-use mpgdrive::sim::geometry::{Footprint, boxes_overlap};
-use mpgdrive::sim::safety::{NO_BOUND, Neighbor, clip_action, feasible_interval, project_feasible, ttc};
+use mpgdrive::world::geometry::{Footprint, boxes_overlap};
+use mpgdrive::world::safety::{NO_BOUND, Neighbor, clip_action, feasible_interval, project_feasible, ttc};
 
 fn nb(x: f64, v: f64) -> Neighbor<f64> {
     Neighbor { x, v, present: 1.0 }

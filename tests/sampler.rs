@@ -3,8 +3,8 @@
 mod common;
 
 use common::{paper, smoke};
-use mpgdrive::sim::safety::ttc;
-use mpgdrive::sim::sampler::{sample_scene, sample_scenes, stratum};
+use mpgdrive::world::safety::ttc;
+use mpgdrive::world::sampler::{sample_scene, sample_scenes, stratum};
 use proptest::prelude::*;
 
 proptest! {

@@ -5,10 +5,10 @@ mod common;
 
 use common::paper;
 use mpgdrive::config::Config;
-use mpgdrive::sim::Driver;
-use mpgdrive::sim::rollout::{DriverActor, RolloutOptions, rollout};
-use mpgdrive::sim::sampler::sample_scenes;
-use mpgdrive::sim::tensor::{self, idm_actions};
+use mpgdrive::engine::rollout::{DriverActor, RolloutOptions, rollout};
+use mpgdrive::engine::tensor::{self, idm_actions};
+use mpgdrive::world::Driver;
+use mpgdrive::world::sampler::sample_scenes;
 use tch::{Kind, Tensor};
 
 /// Runs both engines on the same scenes and checks returns and potentials agree; returns the

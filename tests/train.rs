@@ -228,7 +228,7 @@ fn sidecar_for(net: &PolicyNet) -> file::Sidecar {
         format: file::FORMAT.into(),
         obs_layout_version: mpgdrive::policy::observation::OBS_LAYOUT_VERSION,
         net: net.spec.clone(),
-        mode: "mpg".into(),
+        mode: Mode::Mpg,
         seed: 0,
         epochs: 0,
         command: "test".into(),

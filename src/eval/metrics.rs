@@ -10,7 +10,7 @@
 //! - average ego speed, average `|u|` of the ego's applied acceleration, average jerk
 //!   magnitude `|u_t - u_{t-1}| / dt`, over the steps simulated.
 
-use crate::sim::rollout::{EgoStats, EpisodeOutcome};
+use crate::engine::outcome::{EgoStats, EpisodeOutcome};
 use serde::Serialize;
 
 /// Metrics of one episode.

@@ -6,17 +6,19 @@
 //! fractional (15.4/500).
 
 use crate::config::Config;
+use crate::engine::rollout::Recording;
 use crate::eval::metrics::{EpisodeMetrics, Summary};
 use crate::policy::drive::{Others, policy_rollout};
 use crate::policy::file::{self, PolicyError, Sidecar};
+use crate::policy::mode::Mode;
 use crate::policy::network::PolicyNet;
-use crate::sim::rollout::{Driver, Recording};
-use crate::sim::sampler::{Purpose, purpose_seed, sample_scenes};
+use crate::world::drivers::Driver;
+use crate::world::sampler::{Purpose, purpose_seed, sample_scenes};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 /// How the surrounding players drive.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Surrounding {
     /// The same shared policy as the ego (the Nash-equilibrium policies).
@@ -181,8 +183,8 @@ pub fn mean_over_seeds(per_seed: &[(u64, Summary)]) -> MeanSummary {
 /// The whole study.
 #[derive(Debug, Clone, Serialize)]
 pub struct Study {
-    /// "mpg" or "sarl" (from the policy files).
-    pub mode: String,
+    /// What the policies learned (from the policy files).
+    pub mode: Mode,
     /// Policy seeds.
     pub seeds: Vec<u64>,
     /// One column per kind of surrounding players.
@@ -213,11 +215,11 @@ pub fn evaluate(
                 config.eval.test_scenarios,
             );
             let others = match surrounding {
-                Surrounding::Ne if side.mode == "mpg" => Others::SameNetwork,
+                Surrounding::Ne if side.mode == Mode::Mpg => Others::SameNetwork,
                 Surrounding::Ne => {
                     let ne = ne_policies
                         .iter()
-                        .find(|(_, s)| s.seed == side.seed && s.mode == "mpg");
+                        .find(|(_, s)| s.seed == side.seed && s.mode == Mode::Mpg);
                     Others::Network(&ne.ok_or(EvalError::NeedNePolicy { seed: side.seed })?.0)
                 }
                 Surrounding::Idm => Others::Driver(Driver::Idm),
@@ -247,7 +249,7 @@ pub fn evaluate(
         });
     }
     Ok(Study {
-        mode: policies[0].1.mode.clone(),
+        mode: policies[0].1.mode,
         seeds: policies.iter().map(|(_, s)| s.seed).collect(),
         columns,
         episodes,
@@ -265,12 +267,12 @@ fn count(x: f64) -> String {
 impl Study {
     /// A Markdown table laid out like the paper's Tables II and III.
     pub fn markdown(&self) -> String {
-        let title = if self.mode == "sarl" {
+        let title = if self.mode == Mode::Sarl {
             "Single-agent RL"
         } else {
             "MARL with MPGs"
         };
-        let head = if self.mode == "sarl" {
+        let head = if self.mode == Mode::Sarl {
             "Surrounding vehicles' policies"
         } else {
             "Selected players' policies"

@@ -1,8 +1,7 @@
 //! The Markov potential game: reward terms (Section V-iii), per-agent rewards `r_i`, the
 //! potential `phi` of Theorem 3, and the numerical check of Definition 3.
 
-pub mod mpg_check;
 pub mod reward;
 pub mod terms;
 
-pub use reward::{PairReward, PaperReward, StepRewards, TermValues};
+pub use reward::{PairReward, PairTerms, PaperReward, StepRewards, TermValues};

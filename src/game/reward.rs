@@ -11,7 +11,7 @@
 
 use crate::config::Config;
 use crate::game::terms;
-use crate::sim::state::Vehicle;
+use crate::world::state::Vehicle;
 
 /// Unweighted reward terms of one agent at one step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -36,12 +36,23 @@ impl TermValues {
     }
 }
 
+/// What a pair reward gives player `i` from its interaction with `j`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairTerms {
+    /// The weighted pair reward `r_ij`.
+    pub reward: f64,
+    /// The unweighted same-lane TTC term (0 for players in different lanes).
+    pub ttc: f64,
+    /// The unweighted conflict time-gap term (0 for players in the same lane).
+    pub conflict: f64,
+}
+
 /// A pairwise reward `r_ij(s_i, s_j)`, weighted. `i` and `j` are player indices, so a test can
 /// build a deliberately asymmetric one.
 pub trait PairReward: Sync {
     /// The weighted pair reward of `i` from its interaction with `j`, and its unweighted parts
-    /// `(ttc, conflict)` for logging.
-    fn pair(&self, i: usize, j: usize, a: &Vehicle, b: &Vehicle) -> (f64, f64, f64);
+    /// for logging.
+    fn pair(&self, i: usize, j: usize, a: &Vehicle, b: &Vehicle) -> PairTerms;
 
     /// True when `r_ij = r_ji` for every pair, so each pair needs computing once.
     fn is_symmetric(&self) -> bool;
@@ -82,14 +93,22 @@ impl PaperReward {
 }
 
 impl PairReward for PaperReward {
-    fn pair(&self, _i: usize, _j: usize, a: &Vehicle, b: &Vehicle) -> (f64, f64, f64) {
+    fn pair(&self, _i: usize, _j: usize, a: &Vehicle, b: &Vehicle) -> PairTerms {
         let [_, _, w_ttc, w_conflict] = self.weights;
         if a.on_ramp == b.on_ramp {
-            let t = terms::same_lane_ttc(&a.x, &a.v, &b.x, &b.v, self.v_c, self.epsilon);
-            (w_ttc * t, t, 0.0)
+            let ttc = terms::same_lane_ttc(&a.x, &a.v, &b.x, &b.v, self.v_c, self.epsilon);
+            PairTerms {
+                reward: w_ttc * ttc,
+                ttc,
+                conflict: 0.0,
+            }
         } else {
-            let c = terms::conflict_time_gap(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
-            (w_conflict * c, 0.0, c)
+            let conflict = terms::conflict_time_gap(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
+            PairTerms {
+                reward: w_conflict * conflict,
+                ttc: 0.0,
+                conflict,
+            }
         }
     }
 
@@ -138,20 +157,28 @@ impl StepRewards {
         let symmetric = pair.is_symmetric();
         for i in 0..n {
             for j in 0..i {
-                let (r_ij, ttc_ij, conf_ij) = pair.pair(i, j, &vehicles[i], &vehicles[j]);
-                let (r_ji, ttc_ji, conf_ji) = if symmetric {
-                    (r_ij, ttc_ij, conf_ij)
+                let ij = pair.pair(i, j, &vehicles[i], &vehicles[j]);
+                let ji = if symmetric {
+                    ij
                 } else {
                     pair.pair(j, i, &vehicles[j], &vehicles[i])
                 };
-                self.reward[i] += r_ij;
-                self.reward[j] += r_ji;
-                self.terms[i].ttc += ttc_ij;
-                self.terms[i].conflict += conf_ij;
-                self.terms[j].ttc += ttc_ji;
-                self.terms[j].conflict += conf_ji;
-                self.potential += r_ij; // Theorem 3: pairs j < i, r_ij
+                self.reward[i] += ij.reward;
+                self.reward[j] += ji.reward;
+                self.terms[i].ttc += ij.ttc;
+                self.terms[i].conflict += ij.conflict;
+                self.terms[j].ttc += ji.ttc;
+                self.terms[j].conflict += ji.conflict;
+                self.potential += ij.reward; // Theorem 3: pairs j < i, r_ij
             }
         }
     }
+}
+
+/// Weight of a reward held from step `step + 1` to the last step `steps - 1`:
+/// `sum_{k = step + 1}^{steps - 1} gamma^k`. With `sim.absorbing_collision`, a collision at
+/// `step` charges every player its reward of that step this many more times (an absorbing
+/// crash state), so that ending an episode early never raises a return of negative rewards.
+pub fn tail_weight(gamma: f64, step: usize, steps: usize) -> f64 {
+    (step + 1..steps).map(|k| gamma.powi(k as i32)).sum()
 }

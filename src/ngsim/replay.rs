@@ -17,6 +17,7 @@
 //!   record ends.
 
 use crate::config::Config;
+use crate::engine::outcome::EgoStats;
 use crate::eval::metrics::{EpisodeMetrics, Summary};
 use crate::eval::study::{MeanSummary, mean_over_seeds, table};
 use crate::ngsim::config::{FRAME_SECONDS, NgsimConfig};
@@ -25,11 +26,11 @@ use crate::ngsim::scenario::MergeScenario;
 use crate::policy::file::Sidecar;
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::{BatchPolicy, obs_dim, observe};
-use crate::sim::dynamics::Axles;
-use crate::sim::geometry::{Footprint, Road, boxes_overlap};
-use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::{EgoStats, advance, applied_action};
-use crate::sim::state::{Scene, Vehicle};
+use crate::world::geometry::{Footprint, boxes_overlap};
+use crate::world::neighbors::find_neighbors;
+use crate::world::rules::WorldRules;
+use crate::world::state::{Scene, Vehicle};
+use crate::world::step::{advance, applied_action};
 use serde::Serialize;
 
 /// Who drives the ego.
@@ -53,9 +54,7 @@ pub struct Replay {
 
 /// The paper configuration with the NGSIM conflict point.
 pub fn replay_config(config: &Config, ngsim: &NgsimConfig) -> Config {
-    let mut c = config.clone();
-    c.scenario.conflict_point = ngsim.merge.conflict_point;
-    c
+    config.at_conflict_point(ngsim.merge.conflict_point)
 }
 
 /// A recorded vehicle at `frame` (after its record, or in a hole: moved on at its last speed).
@@ -92,12 +91,8 @@ pub fn replay(
 ) -> Replay {
     let ego_track = &data.tracks[scenario.ego];
     let players: Vec<&Track> = scenario.players.iter().map(|&(j, _)| &data.tracks[j]).collect();
-    let road = Road::new(config);
-    let dt = config.sim.dt;
-    let axles = Axles {
-        l_f: config.vehicle.l_f,
-        l_r: config.vehicle.l_r,
-    };
+    let rules = WorldRules::new(config);
+    let dt = rules.dt;
     let start = scenario.start_frame;
     let human = matches!(driver, EgoDriver::Human);
     let steps = if human {
@@ -114,7 +109,7 @@ pub fn replay(
         Scene { vehicles }
     };
     let mut ego = recorded(ego_track, start, ngsim);
-    ego.y = road.lane_y(true);
+    ego.y = rules.road.lane_y(true);
     ego.on_ramp = true;
     let mut scene = scene_at(0, ego);
     let mut scenes = vec![scene.clone()];
@@ -131,10 +126,10 @@ pub fn replay(
             }
             EgoDriver::Policy(policy) => {
                 find_neighbors(&scene, &mut order, &mut nb);
-                observe(road.conflict_point, &scene, 0, &nb[0], &mut obs);
+                observe(rules.conflict_point(), &scene, 0, &nb[0], &mut obs);
                 policy.act(&obs, 1, &mut action);
                 applied_action(
-                    config,
+                    &rules,
                     config.sim.feasibility,
                     &scene,
                     0,
@@ -147,7 +142,7 @@ pub fn replay(
         let ego = if human {
             recorded(ego_track, start + step as u32 + 1, ngsim)
         } else {
-            advance(scene.ego(), accel, &road, axles, dt)
+            advance(scene.ego(), accel, &rules)
         };
         scene = scene_at(step + 1, ego);
         scenes.push(scene.clone());

@@ -7,7 +7,7 @@
 
 use crate::ngsim::config::{FRAME_SECONDS, NgsimConfig};
 use crate::ngsim::process::Prepared;
-use crate::sim::neighbors::player_slots;
+use crate::world::neighbors::player_slots;
 use serde::Serialize;
 
 /// One merge scenario; vehicles are indices into [`Prepared::tracks`].

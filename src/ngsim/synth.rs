@@ -11,16 +11,17 @@
 //! recorded lane is read from the noisy lateral position, as in the raw data.
 
 use crate::config::Config;
+use crate::engine::rollout::{DriverActor, Recording, RolloutOptions, rollout};
 use crate::ngsim::config::{FRAME_SECONDS, NgsimConfig};
 use crate::ngsim::load::{COLUMNS, FOOT};
-use crate::sim::rollout::{Driver, DriverActor, Recording, RolloutOptions, rollout};
-use crate::sim::sampler::{sample_scenes, scenario_rng};
+use crate::world::drivers::Driver;
+use crate::world::sampler::{sample_scenes, scenario_rng};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
 
 /// Which official layout to write.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Layout {
     /// FHWA text: 18 whitespace-separated columns, no header.
     Text,
@@ -83,8 +84,7 @@ pub fn generate(
     noise: f64,
     layout: Layout,
 ) -> Synthetic {
-    let mut config = config.clone();
-    config.scenario.conflict_point = ngsim.merge.conflict_point;
+    let config = config.at_conflict_point(ngsim.merge.conflict_point);
     let scenes = sample_scenes(&config, seed, 0, episodes);
     let opts = RolloutOptions {
         recording: Recording::Full,

@@ -1,10 +1,12 @@
 //! Driving scenarios with trained networks in the scalar engine.
 
 use crate::config::Config;
+use crate::engine::outcome::EpisodeOutcome;
+use crate::engine::rollout::{Recording, RolloutOptions, rollout};
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::PolicyActor;
-use crate::sim::rollout::{Driver, EpisodeOutcome, Recording, RolloutOptions, rollout};
-use crate::sim::state::Scene;
+use crate::world::drivers::Driver;
+use crate::world::state::Scene;
 use std::sync::Mutex;
 
 /// Who drives the players other than the ego.

@@ -8,6 +8,7 @@
 
 use crate::atomic::with_suffix;
 use crate::config::Config;
+use crate::policy::mode::Mode;
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::OBS_LAYOUT_VERSION;
 use serde::{Deserialize, Serialize};
@@ -63,8 +64,8 @@ pub struct Sidecar {
     pub obs_layout_version: u32,
     /// Network sizes and scales.
     pub net: NetSpec,
-    /// "mpg" (shared policy for every player) or "sarl" (ego only).
-    pub mode: String,
+    /// What the policy learned: shared policy for every player, or ego only.
+    pub mode: Mode,
     /// Training seed.
     pub seed: u64,
     /// Epochs trained.

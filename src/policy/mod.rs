@@ -2,8 +2,10 @@
 
 pub mod drive;
 pub mod file;
+pub mod mode;
 pub mod network;
 pub mod observation;
 
+pub use mode::Mode;
 pub use network::{NetSpec, PolicyNet};
 pub use observation::{BatchPolicy, LinearPolicy, PolicyActor, obs_dim};

@@ -22,11 +22,13 @@
 //! Values are raw SI numbers here; the policy network normalises them.
 
 use crate::config::Config;
+use crate::engine::rollout::Actor;
 use crate::num::Num;
-use crate::sim::neighbors::Neighbors;
-use crate::sim::rollout::{Actor, Driver, driver_accel, neighbor_of};
-use crate::sim::safety::Neighbor;
-use crate::sim::state::Scene;
+use crate::world::drivers::{Driver, driver_accel};
+use crate::world::neighbors::Neighbors;
+use crate::world::safety::Neighbor;
+use crate::world::state::Scene;
+use crate::world::step::neighbor_of;
 
 /// Observation layout version, stored with policy files; a file of another version is refused.
 /// Version 2 caps a present neighbour's distance at [`MISSING_DISTANCE`] (version 1 did not).
@@ -223,10 +225,10 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
 /// [`features`] as [`observe`] (differentiable in the states).
 pub fn tensor_observations(
     x_c: f64,
-    batch: &crate::sim::tensor::TensorBatch,
-    nb: &crate::sim::tensor::NeighborIndex,
+    batch: &crate::engine::tensor::TensorBatch,
+    nb: &crate::engine::tensor::NeighborIndex,
 ) -> tch::Tensor {
-    use crate::sim::tensor::Which;
+    use crate::engine::tensor::Which;
     let f = features(
         x_c,
         &batch.x,
@@ -245,8 +247,8 @@ pub fn tensor_observations(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::neighbors::find_neighbors;
-    use crate::sim::state::Vehicle;
+    use crate::world::neighbors::find_neighbors;
+    use crate::world::state::Vehicle;
 
     fn car(x: f64, v: f64, on_ramp: bool) -> Vehicle {
         Vehicle {

@@ -2,12 +2,12 @@
 //! (GIF), and the ego's speed, acceleration and gap over time (PNG).
 
 use crate::config::Config;
+use crate::engine::outcome::EpisodeOutcome;
 use crate::render::RenderError;
 use crate::render::charts::{Panel, Series, panels_png};
 use crate::render::scene::{Layout, episode_gif, frame_png, key_steps, span_for};
-use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::EpisodeOutcome;
-use crate::sim::state::Scene;
+use crate::world::neighbors::find_neighbors;
+use crate::world::state::Scene;
 use std::path::{Path, PathBuf};
 
 /// The scenes of a fully recorded outcome, one per state `s_0 .. s_steps`.

@@ -4,7 +4,7 @@
 
 use crate::atomic;
 use crate::render::{FONT, RenderError, draw_error, register_font};
-use crate::sim::state::{Scene, player_label};
+use crate::world::state::{Scene, player_label};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};

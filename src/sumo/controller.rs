@@ -50,14 +50,17 @@
 //! teleport or vanish are dropped from the games at once.
 
 use crate::config::Config;
+use crate::engine::outcome::EgoStats;
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::{BatchPolicy, obs_dim, observe_as};
 use crate::render::timespace::{Road, Sample, TimeSpace};
-use crate::sim::neighbors::{Neighbors, find_neighbors, player_slots};
-use crate::sim::rollout::{EgoStats, applied_action};
-use crate::sim::state::{Scene, Vehicle};
 use crate::sumo::geometry::{MergeGeometry, PlayerControl};
+use crate::sumo::kind::ControllerKind;
 use crate::sumo::{Sumo, SumoError};
+use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
+use crate::world::rules::WorldRules;
+use crate::world::state::{Scene, Vehicle};
+use crate::world::step::applied_action;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::time::Instant;
@@ -87,29 +90,6 @@ impl ControlModes {
         speed: 0,
         lane_change: 0,
     };
-}
-
-/// Who drives the egos (and players).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ControllerKind {
-    /// The MARL (MPG) policy drives the ego and the players `merge.toml`'s `players` names.
-    Mpg,
-    /// The single-agent policy drives the ego only.
-    Sarl,
-    /// No override: SUMO's own car-following and lane changing (metrics only).
-    Sumo,
-}
-
-impl ControllerKind {
-    /// The name used on the command line and in tables.
-    pub fn name(self) -> &'static str {
-        match self {
-            ControllerKind::Mpg => "mpg",
-            ControllerKind::Sarl => "sarl",
-            ControllerKind::Sumo => "sumo",
-        }
-    }
 }
 
 /// One target-lane or ramp vehicle as the controller sees it this step.
@@ -193,11 +173,12 @@ pub struct ControllerTiming {
 /// The co-simulation controller (see the module docs).
 pub struct Controller {
     config: Config,
+    /// The world's rules at the network's conflict point.
+    rules: WorldRules,
     geometry: MergeGeometry,
     kind: ControllerKind,
     policy: Option<PolicyNet>,
     modes: ControlModes,
-    dt: f64,
     types: HashMap<String, String>,
     /// The ramp or target lane each vehicle was last seen on (for junction internal lanes).
     lane_class: HashMap<String, String>,
@@ -227,21 +208,21 @@ impl Controller {
     /// `geometry`, not the one of `config`'s internal world: the observation reads distances
     /// to it, so a policy deploys at any conflict point.
     pub fn new(
-        mut config: Config,
+        config: Config,
         geometry: MergeGeometry,
         kind: ControllerKind,
         policy: Option<PolicyNet>,
         modes: ControlModes,
     ) -> Self {
-        config.scenario.conflict_point = geometry.conflict_point;
-        let dt = config.sim.dt;
+        let config = config.at_conflict_point(geometry.conflict_point);
+        let rules = WorldRules::new(&config);
         Controller {
             config,
+            rules,
             geometry,
             kind,
             policy,
             modes,
-            dt,
             types: HashMap::new(),
             lane_class: HashMap::new(),
             players: HashMap::new(),
@@ -264,7 +245,7 @@ impl Controller {
     /// a driven vehicle), and whether the controller drives it (for `sumo`, whether it is a
     /// tracked ego). Collisions are marked at the colliding vehicle.
     pub fn record_timespace(&mut self) {
-        self.timespace = Some(TimeSpace::new(self.dt));
+        self.timespace = Some(TimeSpace::new(self.rules.dt));
     }
 
     /// The time-space record so far (none unless [`Controller::record_timespace`] was called).
@@ -446,7 +427,7 @@ impl Controller {
                 self.overridden += 1;
             }
             let (v, accel) = match self.applied.get(&id) {
-                Some(&a) => (s.speed + a * self.dt, a),
+                Some(&a) => (s.speed + a * self.rules.dt, a),
                 None => (s.speed, s.accel),
             };
             self.lane_class.insert(id.clone(), lane.clone());
@@ -581,7 +562,7 @@ impl Controller {
             find_neighbors(&scene, &mut self.order, &mut nb);
             let ego_car = &cars[game.members[0].0];
             if let Some(record) = self.egos.get_mut(&ego_car.id) {
-                record.stats.update(&scene, ego_car.accel, self.dt);
+                record.stats.update(&scene, ego_car.accel, self.rules.dt);
             }
             if self.kind != ControllerKind::Sumo {
                 for (m, &(j, slot)) in game.members.iter().enumerate() {
@@ -617,7 +598,7 @@ impl Controller {
                     (&scenes[gi], m)
                 };
                 let a = applied_action(
-                    &self.config,
+                    &self.rules,
                     self.config.sim.feasibility,
                     scene,
                     i,
@@ -675,7 +656,7 @@ struct Game {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::merge_gate::{GateRules, entry_is_safe};
+    use crate::world::merge_gate::{GateRules, entry_is_safe};
 
     fn car(id: &str, x: f64, v: f64, on_ramp: bool) -> Car {
         Car {

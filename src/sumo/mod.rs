@@ -9,18 +9,20 @@ pub mod controller;
 #[cfg(feature = "sumo")]
 pub mod cosim;
 #[cfg(feature = "sumo")]
-pub mod ffi;
+mod ffi;
 pub mod geometry;
 #[cfg(feature = "sumo")]
 pub mod handle;
 pub mod inputs;
 pub mod inspect;
+pub mod kind;
 
 #[cfg(feature = "sumo")]
-pub use controller::{ControlModes, Controller, ControllerKind, EgoRecord};
+pub use controller::{ControlModes, Controller, EgoRecord};
 pub use geometry::MergeGeometry;
 #[cfg(feature = "sumo")]
 pub use handle::{Backend, Collision, NewVehicle, Sumo, VehicleState};
+pub use kind::ControllerKind;
 
 /// Errors of the SUMO layer.
 #[derive(Debug, thiserror::Error)]

@@ -1,7 +1,7 @@
 //! Training: potential-based gradient ascent (Algorithm 1) and the single-agent baseline.
 //!
 //! Each epoch draws a stratified minibatch of initial states, rolls the shared policy out in
-//! the differentiable tensor engine ([`crate::sim::tensor`]) and takes one Adam step on the
+//! the differentiable tensor engine ([`crate::engine::tensor`]) and takes one Adam step on the
 //! gradient, back-propagated through the whole rollout, of
 //! - `mpg`: the mean discounted total potential, eq. (29), with the policy driving every player;
 //! - `sarl`: the ego's mean discounted return `J_ego`, the other players driven by IDM.
@@ -15,16 +15,19 @@ pub mod stacked;
 
 use crate::atomic::with_suffix;
 use crate::config::Config;
+use crate::engine::outcome::EpisodeOutcome;
+use crate::engine::rollout::{Recording, RolloutOptions, rollout};
+use crate::engine::tensor::{self, idm_actions};
 use crate::eval::EpisodeMetrics;
 use crate::policy::file::{self, PolicyError, Sidecar};
+pub use crate::policy::mode::Mode;
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::{BatchPolicy, PolicyActor};
 use crate::policy::observation::{OBS_LAYOUT_VERSION, obs_dim, observe, tensor_observations};
-use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::{Driver, EpisodeOutcome, Recording, RolloutOptions, rollout};
-use crate::sim::sampler::{Purpose, purpose_seed, sample_scenes};
-use crate::sim::state::Scene;
-use crate::sim::tensor::{self, idm_actions};
+use crate::world::drivers::Driver;
+use crate::world::neighbors::find_neighbors;
+use crate::world::sampler::{Purpose, purpose_seed, sample_scenes};
+use crate::world::state::Scene;
 use curves::EpochRecord;
 use stacked::StackedNet;
 use std::path::{Path, PathBuf};
@@ -32,26 +35,6 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 use tch::{Kind, Tensor, nn::OptimizerConfig};
-
-/// What is learned.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Mode {
-    /// Shared policy for every player, maximising the potential.
-    Mpg,
-    /// Ego policy only, maximising the ego's return, the others on IDM.
-    Sarl,
-}
-
-impl Mode {
-    /// Lower-case name ("mpg" or "sarl").
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::Mpg => "mpg",
-            Mode::Sarl => "sarl",
-        }
-    }
-}
 
 /// A training failure.
 #[derive(Debug, thiserror::Error)]
@@ -199,7 +182,7 @@ fn sidecar(
         format: file::FORMAT.to_string(),
         obs_layout_version: OBS_LAYOUT_VERSION,
         net: net.spec.clone(),
-        mode: run.mode.name().to_string(),
+        mode: run.mode,
         seed: run.seed,
         epochs,
         command: run.command.clone(),
@@ -473,7 +456,7 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
     let ckpt = checkpoint_path(&run.out);
     if run.resume && file::paths(&ckpt).1.exists() {
         let (net, side) = file::load(&ckpt, n)?;
-        if side.mode != run.mode.name() || side.seed != run.seed || side.config != *config {
+        if side.mode != run.mode || side.seed != run.seed || side.config != *config {
             return Err(TrainError::ForeignCheckpoint {
                 path: ckpt,
                 message: "its mode, seed or configuration differs".into(),

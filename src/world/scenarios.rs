@@ -9,8 +9,8 @@
 //!   ego, so the gap closes quickly: the ego waits for "5" to pass, then merges behind it.
 
 use crate::config::Config;
-use crate::sim::geometry::Road;
-use crate::sim::state::{Scene, Vehicle};
+use crate::world::geometry::Road;
+use crate::world::state::{Scene, Vehicle};
 
 /// A named initial state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

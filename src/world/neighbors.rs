@@ -10,7 +10,7 @@
 //!
 //! Ties in position are broken by player index, so the result is deterministic.
 
-use crate::sim::state::Scene;
+use crate::world::state::Scene;
 
 /// Neighbour indices of one player (`None` where there is no such player).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

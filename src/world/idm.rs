@@ -12,7 +12,7 @@
 
 use crate::config::IdmConfig;
 use crate::num::Num;
-use crate::sim::safety::Neighbor;
+use crate::world::safety::Neighbor;
 
 /// Smallest gap IDM divides by (m).
 pub const MIN_GAP: f64 = 0.1;

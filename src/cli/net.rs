@@ -1,5 +1,6 @@
 //! `mpgdrive net inspect`: the command over [`mpgdrive::sumo::inspect`].
 
+use crate::cli::common::{print, usage};
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use mpgdrive::sumo::inspect::{find_merges, proposal};
@@ -34,13 +35,13 @@ pub fn run(args: NetArgs) -> Result<ExitCode> {
     let NetCommand::Inspect { net, out, merge } = args.command;
     let merges = find_merges(&net)?;
     if merges.is_empty() {
-        return Err(crate::usage(format!(
+        return Err(usage(format!(
             "{}: no lane ends beside a lane that goes on (no merge found)",
             net.display()
         )));
     }
     if !(1..=merges.len()).contains(&merge) {
-        return Err(crate::usage(format!(
+        return Err(usage(format!(
             "--merge {merge}: the network has {} merge(s)",
             merges.len()
         )));
@@ -57,7 +58,7 @@ pub fn run(args: NetArgs) -> Result<ExitCode> {
         }
         None => {
             for (k, m) in merges.iter().enumerate() {
-                crate::print(&format!(
+                print(&format!(
                     "# Merge {} of {}: `{}` ends at x = {:.1} m beside `{}`\n{}",
                     k + 1,
                     merges.len(),

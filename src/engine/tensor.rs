@@ -1,21 +1,23 @@
 //! The rollout over `[batch, agents]` tensors, differentiable for training.
 //!
-//! It runs the same generic equations as the scalar engine ([`crate::sim::rollout`]): eq. (1),
+//! It runs the same generic equations as the scalar engine ([`crate::world::rollout`]): eq. (1),
 //! the feasibility projection, IDM and the reward terms come from the same functions. The
 //! discrete parts carry no gradient and are computed once, on detached values, by the scalar
 //! code: who is whose neighbour ([`find_neighbors`]) and which boxes overlap
 //! ([`first_collision`]). `tests/tensor.rs` checks that both engines agree.
 
 use crate::config::Config;
+use crate::game::reward::tail_weight;
 use crate::game::terms;
 use crate::num::Num;
-use crate::sim::dynamics::{Axles, Kinematics, bicycle_step};
-use crate::sim::idm::idm_accel;
-use crate::sim::merge_gate::{GateRules, gate_holds, stop_bound};
-use crate::sim::neighbors::find_neighbors;
-use crate::sim::rollout::{first_collision, tail_weight};
-use crate::sim::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
-use crate::sim::state::{Scene, Vehicle};
+use crate::world::dynamics::{Kinematics, bicycle_step};
+use crate::world::idm::idm_accel;
+use crate::world::merge_gate::{GateRules, gate_holds, stop_bound};
+use crate::world::neighbors::find_neighbors;
+use crate::world::rules::WorldRules;
+use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
+use crate::world::state::{Scene, Vehicle};
+use crate::world::step::first_collision;
 use tch::{Kind, Tensor};
 
 /// States of a batch of scenarios, each field `[batch, agents]`.
@@ -103,14 +105,14 @@ impl TensorBatch {
 }
 
 /// Neighbour indices as `[batch, agents]` tensors (a missing neighbour points at the player
-/// itself, with presence 0, as the scalar engine's [`crate::sim::rollout::neighbor_of`] does).
+/// itself, with presence 0, as the scalar engine's [`crate::world::rollout::neighbor_of`] does).
 #[derive(Debug)]
 pub struct NeighborIndex {
     index: [Tensor; 4],
     present: [Tensor; 4],
 }
 
-/// Which neighbour: the four notions of [`crate::sim::neighbors::Neighbors`].
+/// Which neighbour: the four notions of [`crate::world::neighbors::Neighbors`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Which {
     /// Nearest ahead, any lane.
@@ -184,14 +186,13 @@ pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> 
 /// Applied actions: feasibility projection for target-lane players and the merge gate for
 /// ramp players (when `feasibility`), then `[-g, g]` and the speed bounds.
 pub fn apply_limits(
-    config: &Config,
+    rules: &WorldRules,
     batch: &TensorBatch,
     nb: &NeighborIndex,
     raw: &Tensor,
     feasibility: bool,
 ) -> Tensor {
-    let veh = &config.vehicle;
-    let dt = config.sim.dt;
+    let dt = rules.dt;
     let a = if feasibility {
         let lead = nb.get(batch, Which::LaneLeader);
         let follow = nb.get(batch, Which::LaneFollower);
@@ -200,34 +201,33 @@ pub fn apply_limits(
             &batch.v,
             &lead,
             &follow,
-            veh.length + config.sim.safety_gap,
+            rules.clearance(),
             dt,
-            config.sim.tau_s,
+            rules.tau_s,
         );
         let lane = <Tensor as Num>::select(&batch.on_ramp, raw, &project_feasible(raw, &lo, &hi));
-        if config.sim.merge_gate {
-            merge_gate(config, batch, &lane)
+        if rules.merge_gate {
+            merge_gate(&rules.gate, batch, &lane)
         } else {
             lane
         }
     } else {
         raw.shallow_clone()
     };
-    clip_action(&a, &batch.v, veh.max_accel, veh.v_min, veh.v_max, dt)
+    clip_action(&a, &batch.v, rules.max_accel, rules.v_min, rules.v_max, dt)
 }
 
 /// The merge gate on `a`: ramp players it holds get `min(a, stop bound)`.
-fn merge_gate(config: &Config, batch: &TensorBatch, a: &Tensor) -> Tensor {
-    let rules = GateRules::new(config);
+fn merge_gate(rules: &GateRules, batch: &TensorBatch, a: &Tensor) -> Tensor {
     let closed: Vec<f64> = batch
         .scenes()
         .iter()
-        .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(gate_holds(s, i, &rules)))))
+        .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(gate_holds(s, i, rules)))))
         .collect();
     let closed = Tensor::from_slice(&closed)
         .reshape(batch.x.size())
         .to_kind(batch.x.kind());
-    let bound = stop_bound(&batch.x, &batch.v, &rules);
+    let bound = stop_bound(&batch.x, &batch.v, rules);
     <Tensor as Num>::select(&closed, &Num::min(a, &bound), a)
 }
 
@@ -281,23 +281,19 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Tensor) 
 
 /// Eq. (1) with zero steering, then the merge: a ramp player reaching `x_c` joins the target
 /// lane.
-pub fn advance(config: &Config, batch: &TensorBatch, u: &Tensor) -> TensorBatch {
-    let axles = Axles {
-        l_f: config.vehicle.l_f,
-        l_r: config.vehicle.l_r,
-    };
+pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Tensor) -> TensorBatch {
     let k = Kinematics {
         x: batch.x.shallow_clone(),
         y: batch.y.shallow_clone(),
         v: batch.v.shallow_clone(),
         phi: batch.phi.shallow_clone(),
     };
-    let next = bicycle_step(&k, u, &u.zeros_like(), axles, config.sim.dt);
-    let before_conflict = Num::gt(&next.x.full(config.scenario.conflict_point), &next.x);
+    let next = bicycle_step(&k, u, &u.zeros_like(), rules.axles, rules.dt);
+    let before_conflict = Num::gt(&next.x.full(rules.conflict_point()), &next.x);
     let on_ramp = &batch.on_ramp * before_conflict;
     TensorBatch::of_tensors(
         next.x,
-        on_ramp.mul_c(-config.scenario.lane_width),
+        on_ramp.mul_c(-rules.road.lane_width),
         next.v,
         next.phi,
         on_ramp,
@@ -335,20 +331,20 @@ pub fn rollout(
     let mut alive = vec![1.0f64; scenes.len()];
     let mut discount = 1.0;
     let pairs = Pairs::new(scenes[0].len(), kind);
+    let rules = WorldRules::new(config);
     for step in 0..steps {
         let nb = NeighborIndex::of(&batch);
         let raw = act(&batch, &nb, step);
-        let u = apply_limits(config, &batch, &nb, &raw, feasibility);
+        let u = apply_limits(&rules, &batch, &nb, &raw, feasibility);
         let (r, phi) = rewards(config, &pairs, &batch, &u);
         let live = Tensor::from_slice(&alive).to_kind(kind);
         returns = returns + &r * live.unsqueeze(1) * discount;
         potential = potential + &phi * &live * discount;
-        batch = advance(config, &batch, &u);
+        batch = advance(&rules, &batch, &u);
         if terminate_on_collision {
-            let v = &config.vehicle;
             let mut crashed = vec![0.0f64; alive.len()];
             for ((a, c), scene) in alive.iter_mut().zip(&mut crashed).zip(batch.scenes()) {
-                if *a > 0.0 && first_collision(scene, v.length, v.width).is_some() {
+                if *a > 0.0 && first_collision(scene, rules.length, rules.width).is_some() {
                     (*a, *c) = (0.0, 1.0);
                 }
             }

@@ -1,113 +1,21 @@
-//! `mpgdrive scenario` (the paper's specific scenarios, drawn) and `mpgdrive report` (one
-//! folder with the tables, the figures and the commands that made them).
+//! `mpgdrive report`: one folder with the tables, the figures and the commands that made them.
 
+use crate::cli::common::{PolicyPair, print, threads, usage};
+use crate::cli::scenario::scenario;
 use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
-use mpgdrive::eval::EpisodeMetrics;
 use mpgdrive::eval::study::{Rules, Study, Surrounding, evaluate, load_policies};
-use mpgdrive::policy::drive::{Others, policy_rollout};
+use mpgdrive::policy::PolicyNet;
+use mpgdrive::policy::file::Sidecar;
 use mpgdrive::render::charts::{Panel, Series, mean_band, panels_png};
-use mpgdrive::render::episode::render_episode;
 use mpgdrive::report::{Block, Document};
-use mpgdrive::scenario::Preset;
-use mpgdrive::sim::rollout::Recording;
 use mpgdrive::train::curves::{self, EpochRecord};
 use mpgdrive::train::curves_path;
+use mpgdrive::world::scenarios::Preset;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-
-/// Arguments of `mpgdrive scenario`.
-#[derive(Args)]
-pub struct ScenarioArgs {
-    /// Configuration file (TOML).
-    #[arg(long, default_value = "configs/paper.toml")]
-    config: PathBuf,
-    /// The paper's scenario: 1 (leaders accelerate, followers decelerate) or 2 (a large gap
-    /// closing fast: wait, then merge).
-    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=2))]
-    preset: u8,
-    /// The shared policy driving every player: a file or a directory of seeds.
-    #[arg(long, default_value = "policies/mpg")]
-    policy: PathBuf,
-    /// Which seed's policy to use from a directory (default: the lowest).
-    #[arg(long)]
-    policy_seed: Option<u64>,
-    /// Output directory.
-    #[arg(long, default_value = "results/scenarios")]
-    out: PathBuf,
-}
-
-/// Runs a preset and draws it; returns the files written and a one-line outcome.
-pub fn scenario(
-    config: &Config,
-    preset: Preset,
-    policy: &Path,
-    seed: Option<u64>,
-    out: &Path,
-) -> Result<(Vec<PathBuf>, String)> {
-    let net = crate::pick_policy(policy, seed, config)?;
-    let scene = preset.scene(config);
-    let outcome = policy_rollout(config, &net, Others::SameNetwork, &[scene], 1, Recording::Full)?
-        .pop()
-        .context("one episode")?;
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    let name = format!("preset{}", preset.number());
-    let title = format!("Scenario {}", preset.number());
-    let mut files = render_episode(out, &name, &title, config, &outcome)?;
-    let metrics = EpisodeMetrics::of(&outcome);
-    let dt = config.sim.dt;
-    let summary = format!(
-        "{title}: {}; ego merged at {}, collision {}, mean speed {:.2} m/s, mean |u| {:.3} m/s^2",
-        preset.description(),
-        outcome.ego_merged_at.map_or("never".to_string(), |m| format!(
-            "t = {:.1} s",
-            (m + 1) as f64 * dt
-        )),
-        outcome.collision.map_or("none".to_string(), |c| format!(
-            "players {} and {} at t = {:.1} s",
-            c.a,
-            c.b,
-            (c.step + 1) as f64 * dt
-        )),
-        metrics.mean_speed,
-        metrics.mean_abs_accel
-    );
-    let json = out.join(format!("{name}.json"));
-    let record = serde_json::json!({
-        "preset": preset.number(),
-        "description": preset.description(),
-        "policy": policy,
-        "policy_seed": seed,
-        "initial": preset.scene(config).vehicles.iter().map(|v| [v.x, v.v]).collect::<Vec<_>>(),
-        "merged_at_step": outcome.ego_merged_at,
-        "collision": outcome.collision.map(|c| [c.step, c.a, c.b]),
-        "metrics": metrics,
-        "summary": summary,
-    });
-    atomic::write(&json, serde_json::to_string_pretty(&record)?)
-        .with_context(|| format!("writing {}", json.display()))?;
-    files.push(json);
-    Ok((files, summary))
-}
-
-/// Runs `mpgdrive scenario`.
-pub fn run_scenario(args: ScenarioArgs) -> Result<ExitCode> {
-    let config = Config::load(&args.config)?;
-    let preset = if args.preset == 1 {
-        Preset::One
-    } else {
-        Preset::Two
-    };
-    let (files, summary) = scenario(&config, preset, &args.policy, args.policy_seed, &args.out)?;
-    let mut text = summary;
-    for f in files {
-        text += &format!("\n  {}", f.display());
-    }
-    crate::print(&text)?;
-    Ok(ExitCode::SUCCESS)
-}
 
 /// Arguments of `mpgdrive report`.
 #[derive(Args)]
@@ -117,7 +25,7 @@ pub struct ReportArgs {
     config: PathBuf,
     /// Directories of one policy per seed, with their training curves.
     #[command(flatten)]
-    policies: crate::PolicyPair,
+    policies: PolicyPair,
     /// Seed of the MARL policy that drives the specific scenarios (default: the lowest).
     #[arg(long)]
     policy_seed: Option<u64>,
@@ -202,13 +110,89 @@ fn quantiles(study: &Study, surrounding: Surrounding) -> Vec<(f64, f64)> {
 }
 
 /// Runs `mpgdrive report`.
-pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
+pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let config = Config::load(&args.config)?;
-    let threads = crate::threads(args.threads)?;
+    let threads = threads(args.threads)?;
+    check_inputs(&args)?;
+    let mpg = load_policies(&args.policies.policy, &config, Rules::Same)?;
+    let sarl = load_policies(&args.policies.sarl_policy, &config, Rules::Same)?;
+    let figures = args.out.join("figures");
+    std::fs::create_dir_all(&figures).with_context(|| format!("creating {}", figures.display()))?;
+    let command: Vec<String> = std::env::args().collect();
+    let ctx = Sections {
+        args: &args,
+        config: &config,
+        cfg: args.config.display().to_string(),
+        figures,
+    };
+    let mut doc = Document::default();
+    let title = "mpgdrive report";
+    doc.push(Block::Heading(1, title.into()));
+    doc.push(Block::Text(format!(
+        "mpgdrive {}; configuration `{}`; MARL policies `{}` (seeds {:?}), single-agent policies `{}` (seeds {:?}). Made by `{}`.",
+        mpgdrive::VERSION,
+        ctx.cfg,
+        args.policies.policy.display(),
+        seeds(&mpg),
+        args.policies.sarl_policy.display(),
+        seeds(&sarl),
+        command.join(" ")
+    )));
+    let all = [Surrounding::Ne, Surrounding::Idm, Surrounding::Const];
+    let marl = evaluate(&config, &mpg, &[], &all, threads)?;
+    let single = evaluate(&config, &sarl, &mpg, &all, threads)?;
+    study_section(&mut doc, &ctx, &marl, &single)?;
+    scenarios_section(&mut doc, &ctx)?;
+    training_section(&mut doc, &ctx, (&mpg, &sarl), (&marl, &single))?;
+    // Co-simulation, NGSIM and batch, when present.
+    cosim_section(&mut doc, &args.cosim, &ctx.figures)?;
+    include_results(
+        &mut doc,
+        "NGSIM I-80 replay (Table IV)",
+        &args.ngsim.join("table4.md"),
+        "no NGSIM results: run `mpgdrive ngsim eval` on the official I-80 files (see the README) and pass its --out here with --ngsim",
+    );
+    if let Some(dir) = &args.batch {
+        batch_section(&mut doc, dir, &ctx.figures)?;
+    }
+    let (md, html) = doc.write(&args.out, title)?;
+    print(&marl.markdown())?;
+    print(&format!(
+        "report: {} ({}), {:.0} s",
+        html.display(),
+        md.display(),
+        t0.elapsed().as_secs_f64()
+    ))?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The binary the report's commands name.
+const EXE: &str = "./target/release/mpgdrive";
+
+/// What the report's sections share.
+struct Sections<'a> {
+    args: &'a ReportArgs,
+    config: &'a Config,
+    /// The configuration's path, as the commands name it.
+    cfg: String,
+    /// Where the figures go.
+    figures: PathBuf,
+}
+
+/// Loaded policies with their sidecars.
+type Policies = [(PolicyNet, Sidecar)];
+
+fn seeds(policies: &Policies) -> Vec<u64> {
+    policies.iter().map(|(_, s)| s.seed).collect()
+}
+
+/// Everything the report reads is checked before any work: the policy directories, the
+/// results folders.
+fn check_inputs(args: &ReportArgs) -> Result<()> {
     for dir in [&args.policies.policy, &args.policies.sarl_policy] {
         if !dir.is_dir() {
-            return Err(crate::usage(format!(
+            return Err(usage(format!(
                 "{}: the report needs a directory of one policy per seed (with their curves)",
                 dir.display()
             )));
@@ -217,42 +201,24 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     check_results(&args.cosim, &["cosim.md", "cosim.json"])?;
     check_results(&args.ngsim, &["table4.md"])?;
     if let Some(dir) = args.batch.as_ref().filter(|d| !d.join("summary.md").is_file()) {
-        return Err(crate::usage(format!(
+        return Err(usage(format!(
             "--batch {}: no summary.md (not a `mpgdrive batch` or `merge` output directory)",
             dir.display()
         )));
     }
-    let mpg = load_policies(&args.policies.policy, &config, Rules::Same)?;
-    let sarl = load_policies(&args.policies.sarl_policy, &config, Rules::Same)?;
-    let figures = args.out.join("figures");
-    std::fs::create_dir_all(&figures).with_context(|| format!("creating {}", figures.display()))?;
-    let command: Vec<String> = std::env::args().collect();
-    let exe = "./target/release/mpgdrive";
-    let cfg = args.config.display().to_string();
-    let mut doc = Document::default();
-    let title = "mpgdrive report";
-    doc.push(Block::Heading(1, title.into()));
-    doc.push(Block::Text(format!(
-        "mpgdrive {}; configuration `{cfg}`; MARL policies `{}` (seeds {:?}), single-agent policies `{}` (seeds {:?}). Made by `{}`.",
-        mpgdrive::VERSION,
-        args.policies.policy.display(),
-        mpg.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
-        args.policies.sarl_policy.display(),
-        sarl.iter().map(|(_, s)| s.seed).collect::<Vec<_>>(),
-        command.join(" ")
-    )));
+    Ok(())
+}
 
-    // Statistical study.
-    let all = [Surrounding::Ne, Surrounding::Idm, Surrounding::Const];
-    let marl = evaluate(&config, &mpg, &[], &all, threads)?;
-    let single = evaluate(&config, &sarl, &mpg, &all, threads)?;
+/// Tables II and III.
+fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Study) -> Result<()> {
+    let (args, exe, cfg) = (ctx.args, EXE, &ctx.cfg);
     doc.push(Block::Heading(2, "Statistical study (Tables II and III)".into()));
     doc.push(Block::Text(format!(
         "{} test scenarios per policy seed, drawn from each seed's test stream (disjoint from training); counts averaged over seeds.",
-        config.eval.test_scenarios
+        ctx.config.eval.test_scenarios
     )));
-    for study in [&marl, &single] {
-        include_markdown(&mut doc, &study.markdown());
+    for study in [marl, single] {
+        include_markdown(doc, &study.markdown());
     }
     doc.push(Block::Code(format!(
         "{exe} eval --config {cfg} --policy {}\n{exe} eval --config {cfg} --policy {} --ne-policy {}",
@@ -263,10 +229,21 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
     atomic::write(&args.out.join("table2.md"), marl.markdown())?;
     atomic::write(&args.out.join("table3.md"), single.markdown())?;
 
-    // Specific scenarios.
+    Ok(())
+}
+
+/// The paper's specific scenarios, run with the MARL policy and drawn.
+fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<()> {
+    let (args, exe, cfg) = (ctx.args, EXE, &ctx.cfg);
     doc.push(Block::Heading(2, "Specific scenarios".into()));
     for preset in [Preset::One, Preset::Two] {
-        let (files, summary) = scenario(&config, preset, &args.policies.policy, args.policy_seed, &figures)?;
+        let (files, summary) = scenario(
+            ctx.config,
+            preset,
+            &args.policies.policy,
+            args.policy_seed,
+            &ctx.figures,
+        )?;
         doc.push(Block::Heading(3, format!("Scenario {}", preset.number())));
         doc.push(Block::Text(summary));
         let captions = [
@@ -291,13 +268,20 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         )));
     }
 
-    // Training curves.
+    Ok(())
+}
+
+/// Training curves (Figures 7 and 8) and the ego's return in training and testing.
+fn training_section(
+    doc: &mut Document,
+    ctx: &Sections,
+    (mpg, sarl): (&Policies, &Policies),
+    (marl, single): (&Study, &Study),
+) -> Result<()> {
+    let (args, exe, cfg, figures) = (ctx.args, EXE, &ctx.cfg, &ctx.figures);
     doc.push(Block::Heading(2, "Training".into()));
-    let seeds = |p: &[(mpgdrive::policy::PolicyNet, mpgdrive::policy::file::Sidecar)]| -> Vec<u64> {
-        p.iter().map(|(_, s)| s.seed).collect()
-    };
-    let mpg_curves = curves_of(&args.policies.policy, &seeds(&mpg))?;
-    let sarl_curves = curves_of(&args.policies.sarl_policy, &seeds(&sarl))?;
+    let mpg_curves = curves_of(&args.policies.policy, &seeds(mpg))?;
+    let sarl_curves = curves_of(&args.policies.sarl_policy, &seeds(sarl))?;
     let fig7 = figures.join("training_potential.png");
     let fig8 = figures.join("training_action_msd.png");
     panels_png(
@@ -381,12 +365,12 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
                 "ego discounted return",
             ),
             vec![
-                line("MARL, NE players", quantiles(&marl, Surrounding::Ne)),
-                line("MARL, IDM players", quantiles(&marl, Surrounding::Idm)),
-                line("single-agent RL, NE players", quantiles(&single, Surrounding::Ne)),
+                line("MARL, NE players", quantiles(marl, Surrounding::Ne)),
+                line("MARL, IDM players", quantiles(marl, Surrounding::Idm)),
+                line("single-agent RL, NE players", quantiles(single, Surrounding::Ne)),
                 line(
                     "single-agent RL, IDM players",
-                    quantiles(&single, Surrounding::Idm),
+                    quantiles(single, Surrounding::Idm),
                 ),
             ],
         )],
@@ -399,26 +383,7 @@ pub fn run_report(args: ReportArgs) -> Result<ExitCode> {
         "{exe} train --config {cfg} --mode mpg --seeds 0,1,2,3,4 --out policies/mpg\n{exe} train --config {cfg} --mode sarl --seeds 0,1,2,3,4 --out policies/sarl"
     )));
 
-    // Co-simulation, NGSIM and batch, when present.
-    cosim_section(&mut doc, &args.cosim, &figures)?;
-    include_results(
-        &mut doc,
-        "NGSIM I-80 replay (Table IV)",
-        &args.ngsim.join("table4.md"),
-        "no NGSIM results: run `mpgdrive ngsim eval` on the official I-80 files (see the README) and pass its --out here with --ngsim",
-    );
-    if let Some(dir) = &args.batch {
-        batch_section(&mut doc, dir, &figures)?;
-    }
-    let (md, html) = doc.write(&args.out, title)?;
-    crate::print(&marl.markdown())?;
-    crate::print(&format!(
-        "report: {} ({}), {:.0} s",
-        html.display(),
-        md.display(),
-        t0.elapsed().as_secs_f64()
-    ))?;
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
 
 /// A results folder is left out when it does not exist; when it does, its files must be
@@ -430,7 +395,7 @@ fn check_results(dir: &Path, files: &[&str]) -> Result<()> {
     for name in files {
         let path = dir.join(name);
         let text = std::fs::read_to_string(&path).map_err(|e| {
-            crate::usage(format!(
+            usage(format!(
                 "{}: {e} (a results folder needs {})",
                 path.display(),
                 files.join(" and ")
@@ -438,7 +403,7 @@ fn check_results(dir: &Path, files: &[&str]) -> Result<()> {
         })?;
         if name.ends_with(".json") {
             serde_json::from_str::<serde_json::Value>(&text)
-                .map_err(|e| crate::usage(format!("{}: not valid JSON: {e}", path.display())))?;
+                .map_err(|e| usage(format!("{}: not valid JSON: {e}", path.display())))?;
         }
     }
     Ok(())

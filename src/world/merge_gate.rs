@@ -36,7 +36,7 @@
 
 use crate::config::Config;
 use crate::num::Num;
-use crate::sim::state::{Scene, Vehicle};
+use crate::world::state::{Scene, Vehicle};
 
 /// How far before `x_c` a held vehicle stops (m): the bound only approaches its stop line,
 /// so a line at `x_c` itself would be reached by rounding.

@@ -20,8 +20,8 @@
 //! Both ranges are never empty, so no sample is rejected.
 
 use crate::config::Config;
-use crate::sim::geometry::Road;
-use crate::sim::state::{Scene, Vehicle};
+use crate::world::geometry::Road;
+use crate::world::state::{Scene, Vehicle};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

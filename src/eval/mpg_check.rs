@@ -20,11 +20,11 @@
 //! check then reports the measured gap as a finding.
 
 use crate::config::Config;
+use crate::engine::rollout::{Actor, Recording, RolloutOptions, rollout_with_reward};
 use crate::game::reward::PairReward;
-use crate::sim::neighbors::Neighbors;
-use crate::sim::rollout::{Actor, Recording, RolloutOptions, rollout_with_reward};
-use crate::sim::sampler::{sample_scenes, scenario_rng};
-use crate::sim::state::Scene;
+use crate::world::neighbors::Neighbors;
+use crate::world::sampler::{sample_scenes, scenario_rng};
+use crate::world::state::Scene;
 use rand::Rng;
 use serde::Serialize;
 
@@ -193,7 +193,7 @@ pub fn check_mpg(
     let mut players: Vec<PlayerGap> = (0..n)
         .map(|i| PlayerGap {
             player: i,
-            label: crate::sim::state::player_label(i),
+            label: crate::world::state::player_label(i),
             max_relative_gap: 0.0,
             max_absolute_gap: 0.0,
             min_abs_delta_j: f64::INFINITY,

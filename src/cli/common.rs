@@ -1,0 +1,112 @@
+//! What several commands share: the common arguments, printing to stdout, usage errors and
+//! picking one policy of a directory.
+
+use anyhow::Result;
+use clap::Args;
+use mpgdrive::config::Config;
+use mpgdrive::eval::study::{Rules, load_policies};
+use std::path::{Path, PathBuf};
+
+/// Configuration, seed and threads of the commands over the internal simulator.
+#[derive(Args)]
+pub struct Common {
+    /// Configuration file (TOML).
+    #[arg(long, default_value = "configs/paper.toml")]
+    pub config: PathBuf,
+    /// Seed of the initial states (default: the configuration's `seed`).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// [`Common`] validated: the configuration, the seed and the number of threads.
+pub struct CommonSettings {
+    /// The validated configuration.
+    pub config: Config,
+    /// `--seed`, or the configuration's.
+    pub seed: u64,
+    /// Worker threads (at least 1).
+    pub threads: usize,
+}
+
+impl Common {
+    /// Loads the configuration and checks `--threads`.
+    pub fn settings(&self) -> Result<CommonSettings> {
+        let config = Config::load(&self.config)?;
+        let seed = self.seed.unwrap_or(config.seed);
+        Ok(CommonSettings {
+            config,
+            seed,
+            threads: threads(self.threads)?,
+        })
+    }
+}
+
+/// The two trained policies a comparison needs.
+#[derive(Args)]
+pub struct PolicyPair {
+    /// MARL policy: a file or a directory of one per seed.
+    #[arg(long, default_value = "policies/mpg")]
+    pub policy: PathBuf,
+    /// Single-agent policy: a file or a directory of one per seed.
+    #[arg(long, default_value = "policies/sarl")]
+    pub sarl_policy: PathBuf,
+}
+
+/// `println!` that ends the process quietly when stdout is closed (for example `| head`)
+/// instead of panicking on the broken pipe.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout().lock(), $($arg)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+            return Err(anyhow::Error::new(e).context("writing to stdout"));
+        }
+    }};
+}
+pub(crate) use outln;
+
+/// An error in the user's input, not a failure of the tool (exit code 2).
+pub fn usage(message: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(mpgdrive::exit::UsageError(message.into()))
+}
+
+/// Prints to stdout, ending quietly on a closed pipe.
+pub fn print(text: &str) -> Result<()> {
+    outln!("{text}");
+    Ok(())
+}
+
+/// One policy from a file or a directory of seeds: `seed`, or else the lowest seed.
+pub fn pick_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<mpgdrive::policy::PolicyNet> {
+    let mut policies = load_policies(path, config, Rules::Same)?;
+    policies.sort_by_key(|(_, side)| side.seed);
+    let index = match seed {
+        None => 0,
+        Some(s) => policies
+            .iter()
+            .position(|(_, side)| side.seed == s)
+            .ok_or_else(|| usage(format!("{}: no policy of seed {s}", path.display())))?,
+    };
+    Ok(policies.swap_remove(index).0)
+}
+
+/// `--threads`: at least 1; all cores when not given.
+pub fn threads(given: Option<usize>) -> Result<usize> {
+    match given {
+        Some(0) => Err(usage("--threads must be at least 1")),
+        Some(t) => Ok(t),
+        None => Ok(std::thread::available_parallelism().map_or(1, |n| n.get())),
+    }
+}
+
+/// A progress bar on stderr (hidden when stderr is not a terminal).
+pub fn progress_bar(len: u64, template: &str) -> Result<indicatif::ProgressBar> {
+    use anyhow::Context as _;
+    Ok(indicatif::ProgressBar::new(len)
+        .with_style(indicatif::ProgressStyle::with_template(template).context("progress bar template")?))
+}

@@ -1,0 +1,306 @@
+//! `mpgdrive cosim`: the command over [`mpgdrive::sumo::cosim`].
+
+use crate::cli::common::PolicyPair;
+use clap::Args;
+use mpgdrive::sumo::ControllerKind;
+use std::path::PathBuf;
+
+/// Arguments of `mpgdrive cosim`.
+#[derive(Args)]
+pub struct CosimArgs {
+    /// Configuration file (TOML): vehicle limits, dt, feasibility rules of the policy.
+    #[arg(long, default_value = "configs/paper.toml")]
+    config: PathBuf,
+    /// SUMO configuration to run.
+    #[arg(long)]
+    sumocfg: PathBuf,
+    /// Route files replacing the configuration's (for example from `mpgdrive routes`).
+    #[arg(long)]
+    route_files: Option<PathBuf>,
+    /// Merge geometry (default: merge.toml next to the .sumocfg).
+    #[arg(long)]
+    merge: Option<PathBuf>,
+    #[command(flatten)]
+    policies: PolicyPair,
+    /// Which seed's policy to use from a directory (default: the lowest).
+    #[arg(long)]
+    policy_seed: Option<u64>,
+    /// Controllers to compare, comma-separated: mpg, sarl, sumo.
+    #[arg(long, value_delimiter = ',', default_value = "mpg,sarl,sumo")]
+    controllers: Vec<ControllerKind>,
+    /// SUMO's random seed (logged with the results).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Simulated duration (s).
+    #[arg(long, default_value_t = 900.0)]
+    end: f64,
+    /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed towards any leader;
+    /// 0: the policy's speed exactly, as the internal simulator).
+    #[arg(long, default_value_t = 25)]
+    speed_mode: i32,
+    /// SUMO lane-change mode of controlled vehicles (256: the merge waits while it would
+    /// collide at once; 0: it happens at the conflict point whatever is there).
+    #[arg(long, default_value_t = 256)]
+    lane_change_mode: i32,
+    /// Watch in sumo-gui (through libtraci).
+    #[arg(long, conflicts_with = "attach")]
+    gui: bool,
+    /// Join a SUMO already running with --remote-port PORT --num-clients N.
+    #[arg(long)]
+    attach: Option<u16>,
+    /// Client order when attached.
+    #[arg(long, default_value_t = 1, requires = "attach")]
+    order: i32,
+    /// Output directory: cosim.md, cosim.json, egos.csv and SUMO's tripinfo/SSM files.
+    #[arg(long, default_value = "results/cosim")]
+    out: PathBuf,
+    /// Print JSON instead of Markdown.
+    #[arg(long)]
+    json: bool,
+    /// Print microseconds per step: SUMO's step and the controller's own work.
+    #[arg(long)]
+    bench: bool,
+    /// Skip the time-space diagrams (timespace_<controller>.png in --out).
+    #[arg(long)]
+    no_diagrams: bool,
+}
+
+#[cfg(not(feature = "sumo"))]
+/// Runs `mpgdrive cosim`: refused, as this build has no SUMO.
+pub fn run(_args: CosimArgs) -> anyhow::Result<std::process::ExitCode> {
+    Err(crate::cli::common::usage(
+        "this mpgdrive was built without the `sumo` feature: rebuild with default features",
+    ))
+}
+
+#[cfg(feature = "sumo")]
+pub use with_sumo::run;
+
+#[cfg(feature = "sumo")]
+mod with_sumo {
+    use super::CosimArgs;
+    use crate::cli::common::{pick_policy, print, usage};
+    use anyhow::{Context, Result};
+    use mpgdrive::atomic;
+    use mpgdrive::config::Config;
+    use mpgdrive::policy::PolicyNet;
+    use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
+    use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, run_controller};
+    use mpgdrive::sumo::{ControlModes, ControllerKind, MergeGeometry};
+    use std::path::Path;
+    use std::process::ExitCode;
+
+    /// Runs `mpgdrive cosim`.
+    pub fn run(args: CosimArgs) -> Result<ExitCode> {
+        let (config, settings) = settings(&args)?;
+        // The policy runs on small batches every step: one libtorch thread avoids pool overhead.
+        tch::set_num_threads(1);
+        // Every policy is loaded (and checked against the configuration) before the first run.
+        let mut controllers = Vec::new();
+        for &kind in &args.controllers {
+            let policy = match kind.mode() {
+                Some(mpgdrive::policy::Mode::Mpg) => Some(&args.policies.policy),
+                Some(mpgdrive::policy::Mode::Sarl) => Some(&args.policies.sarl_policy),
+                None => None,
+            };
+            let net = match policy {
+                Some(p) => Some(pick_policy(p, args.policy_seed, &config)?),
+                None => None,
+            };
+            controllers.push((kind, net));
+        }
+        std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+        let runs = run_all(&config, &settings, controllers, &args.out)?;
+        if args.json {
+            print(&serde_json::to_string_pretty(&runs)?)?;
+        } else {
+            print(&format!(
+                "Co-simulation: {} (SUMO seed {}, {} s)\n\n{}",
+                args.sumocfg.display(),
+                args.seed,
+                args.end,
+                cosim::markdown(&runs)
+            ))?;
+        }
+        if args.bench {
+            print_bench(&settings, &runs)?;
+        }
+        Ok(ExitCode::SUCCESS)
+    }
+
+    /// The arguments checked, before anything is written: the configuration, the geometry
+    /// against its network, the route files.
+    fn settings(args: &CosimArgs) -> Result<(Config, CosimSettings)> {
+        let config = Config::load(&args.config)?;
+        if !args.sumocfg.is_file() {
+            return Err(usage(format!(
+                "--sumocfg {}: no such file",
+                args.sumocfg.display()
+            )));
+        }
+        if !(args.end.is_finite() && args.end > 0.0) {
+            return Err(usage(format!(
+                "--end {}: must be a positive number of seconds",
+                args.end
+            )));
+        }
+        let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
+        if args.attach.is_none() && (files.step_length - config.sim.dt).abs() > 1e-9 {
+            return Err(cosim::CosimError::StepLength {
+                sumo: files.step_length,
+                config: config.sim.dt,
+            }
+            .into());
+        }
+        let merge = args
+            .merge
+            .clone()
+            .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
+        let geometry = MergeGeometry::load(&merge)?;
+        let ssm_equipped =
+            mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometry, &merge)?;
+        if !ssm_equipped {
+            eprintln!(
+                "cosim: {} equips no vehicle with the SSM device: every vehicle gets one (the conflict metrics need it)",
+                args.sumocfg.display()
+            );
+        }
+        let settings = CosimSettings {
+            sumocfg: args.sumocfg.clone(),
+            route_files: args.route_files.clone(),
+            geometry,
+            geometry_path: merge,
+            seed: args.seed,
+            end: args.end,
+            modes: ControlModes {
+                speed: args.speed_mode,
+                lane_change: args.lane_change_mode,
+            },
+            launch: match (args.gui, args.attach) {
+                (true, _) => Launch::Gui,
+                (false, Some(port)) => Launch::Attach {
+                    port,
+                    order: args.order,
+                },
+                (false, None) => Launch::Libsumo,
+            },
+            out: args.out.clone(),
+            timespace: !args.no_diagrams,
+            equip_ssm: !ssm_equipped,
+        };
+        Ok((config, settings))
+    }
+
+    /// Every controller in turn; on a failure, the results so far are written before the error.
+    fn run_all(
+        config: &Config,
+        settings: &CosimSettings,
+        controllers: Vec<(ControllerKind, Option<PolicyNet>)>,
+        out: &Path,
+    ) -> Result<Vec<ControllerRun>> {
+        let mut runs = Vec::new();
+        for (kind, net) in controllers {
+            match run_controller(config, settings, kind, net) {
+                Ok(run) => {
+                    eprintln!(
+                        "cosim: {} done: {} egos over {:.0} s of SUMO time",
+                        kind.name(),
+                        run.egos.len(),
+                        run.simulated
+                    );
+                    runs.push(run);
+                }
+                Err(e) => {
+                    write_outputs(out, &runs)?;
+                    return Err(e).context(format!(
+                        "{} run (results so far in {})",
+                        kind.name(),
+                        out.display()
+                    ));
+                }
+            }
+        }
+        write_outputs(out, &runs)?;
+        Ok(runs)
+    }
+
+    /// `--bench`: microseconds per step against plain SUMO.
+    fn print_bench(settings: &CosimSettings, runs: &[ControllerRun]) -> Result<()> {
+        let plain = cosim::plain_sumo_us_per_step(settings)?;
+        eprintln!(
+            "bench plain SUMO (libsumo, step only): {plain:.1} us/step, {:.0} steps/s",
+            1e6 / plain
+        );
+        for r in runs {
+            let total = r.sumo_us_per_step + r.controller_us_per_step;
+            eprintln!(
+                "bench {}: {} steps, SUMO step {:.1} us + controller {:.1} us = {:.0} steps/s, {:.2} of plain SUMO's speed",
+                r.controller.name(),
+                r.steps,
+                r.sumo_us_per_step,
+                r.controller_us_per_step,
+                1e6 / total,
+                plain / total
+            );
+        }
+        Ok(())
+    }
+
+    fn write_outputs(out: &Path, runs: &[ControllerRun]) -> Result<()> {
+        let command: Vec<String> = std::env::args().collect();
+        atomic::write(
+            &out.join("cosim.md"),
+            format!(
+                "Command: `{}`\n\nmpgdrive {}, {}.\n\n{}",
+                command.join(" "),
+                mpgdrive::VERSION,
+                runs.first().map_or("SUMO not run", |r| r.sumo_version.as_str()),
+                cosim::markdown(runs)
+            ),
+        )?;
+        atomic::write(&out.join("cosim.json"), serde_json::to_string_pretty(runs)?)?;
+        atomic::write(&out.join("egos.csv"), cosim::egos_csv(runs))?;
+        cosim::restore_ssm_outputs(runs)?;
+        write_diagrams(out, runs)?;
+        Ok(())
+    }
+
+    /// `timespace_<controller>.png` for every run that recorded one, all on one scale.
+    fn write_diagrams(out: &Path, runs: &[ControllerRun]) -> Result<()> {
+        let started = std::time::Instant::now();
+        let recorded: Vec<_> = runs
+            .iter()
+            .filter_map(|r| r.timespace.as_ref().map(|t| (r, t)))
+            .collect();
+        if recorded.is_empty() {
+            return Ok(());
+        }
+        let all: Vec<_> = recorded.iter().map(|(_, t)| *t).collect();
+        let layout = DiagramLayout::fit(&all, (1600, 900));
+        for (run, ts) in &recorded {
+            let name = run.controller.name();
+            let title = format!(
+                "Time-space diagram: {name} controller, SUMO seed {}, {:.0} s",
+                run.seed, run.simulated
+            );
+            let marked = match run.controller {
+                ControllerKind::Sumo => "tracked ego (SUMO drives it)",
+                ControllerKind::Sarl => "driven by the single-agent policy",
+                ControllerKind::Mpg => "driven by the MPG policy",
+            };
+            timespace_png(
+                &out.join(format!("timespace_{name}.png")),
+                &layout,
+                ts,
+                &title,
+                marked,
+            )?;
+        }
+        eprintln!(
+            "cosim: {} time-space diagrams in {:.2} s",
+            recorded.len(),
+            started.elapsed().as_secs_f64()
+        );
+        Ok(())
+    }
+}

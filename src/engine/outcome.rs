@@ -1,0 +1,101 @@
+//! What a rollout returns: per-episode outcome, ego statistics, collisions and the optional
+//! step-by-step trajectory.
+
+use crate::game::reward::TermValues;
+use crate::world::state::{Scene, Vehicle};
+
+/// A collision: the step after which the boxes overlap, and the two players.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Collision {
+    /// Step `t` whose action led to the overlap at `t + 1`.
+    pub step: usize,
+    /// First player (lower index).
+    pub a: usize,
+    /// Second player.
+    pub b: usize,
+}
+
+/// Running statistics of the ego over an episode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EgoStats {
+    /// Smallest centre-to-centre (Euclidean) distance between the ego and any other player.
+    pub min_distance: f64,
+    /// Sum of the ego's speed over the steps.
+    pub sum_speed: f64,
+    /// Sum of `|u|` of the ego's applied acceleration.
+    pub sum_abs_accel: f64,
+    /// Sum of `|u_t - u_{t-1}| / dt` over steps after the first.
+    pub sum_abs_jerk: f64,
+    /// Steps counted in the sums.
+    pub steps: usize,
+    last_accel: f64,
+}
+
+impl Default for EgoStats {
+    fn default() -> Self {
+        EgoStats {
+            min_distance: f64::INFINITY,
+            sum_speed: 0.0,
+            sum_abs_accel: 0.0,
+            sum_abs_jerk: 0.0,
+            steps: 0,
+            last_accel: 0.0,
+        }
+    }
+}
+
+impl EgoStats {
+    /// Adds one step: the ego is `scene.vehicles[0]`, the distance runs over the others.
+    pub fn update(&mut self, scene: &Scene, ego_accel: f64, dt: f64) {
+        let ego = scene.ego();
+        for other in &scene.vehicles[1..] {
+            let d = (other.x - ego.x).hypot(other.y - ego.y);
+            self.min_distance = self.min_distance.min(d);
+        }
+        self.sum_speed += ego.v;
+        self.sum_abs_accel += ego_accel.abs();
+        if self.steps > 0 {
+            self.sum_abs_jerk += (ego_accel - self.last_accel).abs() / dt;
+        }
+        self.last_accel = ego_accel;
+        self.steps += 1;
+    }
+}
+
+/// Everything recorded step by step (with [`Recording::Full`]); `n` players per row.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Trajectory {
+    /// States `s_0 .. s_steps`: `(steps + 1) * n` vehicles.
+    pub states: Vec<Vehicle>,
+    /// Actions before projection, `steps * n`.
+    pub raw_actions: Vec<f64>,
+    /// Applied actions, `steps * n`.
+    pub actions: Vec<f64>,
+    /// Unweighted reward terms, `steps * n`.
+    pub terms: Vec<TermValues>,
+    /// Rewards `r_i`, `steps * n`.
+    pub rewards: Vec<f64>,
+    /// Potential `phi` per step.
+    pub potential: Vec<f64>,
+}
+
+/// The result of one episode.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeOutcome {
+    /// Steps simulated (fewer than requested after a terminating collision).
+    pub steps: usize,
+    /// First collision, if any.
+    pub collision: Option<Collision>,
+    /// First step at whose end the ego had passed the conflict point.
+    pub ego_merged_at: Option<usize>,
+    /// Discounted return `J_i = sum_t gamma^t r_i` per player.
+    pub returns: Vec<f64>,
+    /// Discounted potential `sum_t gamma^t phi`.
+    pub potential_return: f64,
+    /// Ego statistics.
+    pub ego: EgoStats,
+    /// Final state.
+    pub final_scene: Scene,
+    /// Step-by-step record ([`Recording::Full`] only).
+    pub trajectory: Option<Trajectory>,
+}

@@ -1,0 +1,99 @@
+//! One step of the world for one vehicle: the action it applies (feasibility projection, merge
+//! gate, limits), eq. (1) with zero steering, and collisions between bounding boxes. One set of
+//! rules for the scalar rollout, the NGSIM replay and the SUMO co-simulation.
+
+use crate::world::dynamics::{Kinematics, bicycle_step};
+use crate::world::geometry::{Footprint, boxes_overlap};
+use crate::world::merge_gate::{gate_holds, stop_bound};
+use crate::world::neighbors::Neighbors;
+use crate::world::rules::WorldRules;
+use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
+use crate::world::state::{Scene, Vehicle};
+
+/// A neighbour of `scene` as the generic equations take it (absent: far ahead, same speed).
+pub fn neighbor_of(scene: &Scene, who: Option<usize>, me: &Vehicle) -> Neighbor<f64> {
+    match who {
+        Some(j) => Neighbor {
+            x: scene.vehicles[j].x,
+            v: scene.vehicles[j].v,
+            present: 1.0,
+        },
+        None => Neighbor {
+            x: me.x,
+            v: me.v,
+            present: 0.0,
+        },
+    }
+}
+
+/// A vehicle after one step of eq. (1) with acceleration `u` and zero steering; a ramp
+/// vehicle whose `x` reaches `x_c` joins the target lane (its lateral position follows the
+/// lane geometry). One step for the rollout and the NGSIM replay.
+pub fn advance(v: &Vehicle, u: f64, rules: &WorldRules) -> Vehicle {
+    let k = bicycle_step(
+        &Kinematics {
+            x: v.x,
+            y: v.y,
+            v: v.v,
+            phi: v.phi,
+        },
+        &u,
+        &0.0,
+        rules.axles,
+        rules.dt,
+    );
+    let on_ramp = rules.road.still_on_ramp(v.on_ramp, k.x);
+    Vehicle {
+        x: k.x,
+        y: rules.road.lane_y(on_ramp),
+        v: k.v,
+        phi: k.phi,
+        on_ramp,
+    }
+}
+
+/// The acceleration player `i` of `scene` applies for the raw action `raw`: when `feasibility`
+/// is on, projected onto its feasible interval in the target lane, or held by the merge gate
+/// on the ramp (`sim.merge_gate`, [`crate::world::merge_gate`]); then clipped to
+/// `[-g, g]` and the speed bounds (Section V-ii). One function for the internal simulator and
+/// the SUMO co-simulation.
+pub fn applied_action(
+    rules: &WorldRules,
+    feasibility: bool,
+    scene: &Scene,
+    i: usize,
+    nb: &Neighbors,
+    raw: f64,
+) -> f64 {
+    let dt = rules.dt;
+    let me = &scene.vehicles[i];
+    let mut a = raw;
+    if feasibility && !me.on_ramp {
+        let lead = neighbor_of(scene, nb.lane_leader, me);
+        let follow = neighbor_of(scene, nb.lane_follower, me);
+        let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, rules.clearance(), dt, rules.tau_s);
+        a = project_feasible(&a, &lo, &hi);
+    }
+    if feasibility && rules.merge_gate && gate_holds(scene, i, &rules.gate) {
+        a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
+    }
+    clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
+}
+
+/// The first overlapping pair `(a, b)`, `a < b`, in index order.
+pub fn first_collision(scene: &Scene, length: f64, width: f64) -> Option<(usize, usize)> {
+    let fp = |v: &Vehicle| Footprint {
+        x: v.x,
+        y: v.y,
+        phi: v.phi,
+        length,
+        width,
+    };
+    let veh = &scene.vehicles;
+    let diagonal = length.hypot(width); // centres farther apart than this cannot overlap
+    (0..veh.len()).find_map(|a| {
+        ((a + 1)..veh.len())
+            .find(|&b| (veh[a].x - veh[b].x).abs() < diagonal && boxes_overlap(&fp(&veh[a]), &fp(&veh[b])))
+            .map(|b| (a, b))
+    })
+}
