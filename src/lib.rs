@@ -1,8 +1,13 @@
 //! mpgdrive: a highway forced merge as a Markov potential game.
 //!
-//! Data flows one way: [`config`] -> [`sim`] / [`game`] (the world and its payoffs) ->
-//! [`policy`] -> [`eval`]. See `DESIGN.md` and the paper (Yan and Liu, "Markov Potential Game
-//! and Multi-Agent Reinforcement Learning for Autonomous Driving") for the equations.
+//! The modules form layers, each using only those below it: [`atomic`] and [`num`] ->
+//! [`config`] -> [`world`] -> [`game`] -> [`engine`] -> [`policy`] -> [`eval`] -> [`train`] ->
+//! [`render`] -> [`ngsim`] / [`sumo`] / [`report`] -> [`batch`] -> [`exit`].
+//! `docs/ARCHITECTURE.md` draws them, maps the paper's equations to the code and follows the
+//! data through each command; `tests/architecture.rs` enforces the order. The paper is Yan and
+//! Liu, "Markov Potential Game and Multi-Agent Reinforcement Learning for Autonomous Driving".
+
+#![warn(missing_docs)]
 
 pub mod atomic;
 pub mod batch;

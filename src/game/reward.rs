@@ -103,7 +103,8 @@ impl PairReward for PaperReward {
                 conflict: 0.0,
             }
         } else {
-            let conflict = terms::conflict_time_gap(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
+            let conflict =
+                terms::conflict_time_gap(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
             PairTerms {
                 reward: w_conflict * conflict,
                 ttc: 0.0,

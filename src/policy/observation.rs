@@ -16,9 +16,8 @@
 //!
 //! A missing neighbour reads as [`MISSING_DISTANCE`] away with zero relative speed, and its
 //! flag is 0. A neighbour farther than that reads as that far (with its flag and relative
-//! speed): training's rollouts almost never go beyond it (704 of 6.75 million observations of
-//! the fifth training's MPG policies under NE players), and in SUMO traffic a waiting ego
-//! whose players had driven 200-500 m ahead was told by one trained policy to brake to a stop.
+//! speed): training's rollouts almost never go beyond it, so a farther distance is outside
+//! what a policy learned (CHANGELOG.md, "Design notes", has the measurements).
 //! Values are raw SI numbers here; the policy network normalises them.
 
 use crate::config::Config;

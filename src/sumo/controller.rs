@@ -6,7 +6,7 @@
 //! controlled vehicle, applies the feasibility projection and limits of the internal
 //! simulator, and sets SUMO's speed (see Integration).
 //! Games are fixed as an internal episode's players are: re-forming them every step made the
-//! trained egos of `i80_merge` stop altogether (measured: 6 failures of 7 finished egos).
+//! trained egos stop altogether (CHANGELOG.md, "Design notes").
 //!
 //! Another Rust program drives it the same way `mpgdrive cosim` does:
 //!
@@ -513,9 +513,8 @@ impl Controller {
     /// first, in the slots that end at `n_leaders`) and up to `n_followers` behind (nearest
     /// first, from slot `n_leaders + 1`), among those within the reach of training's initial
     /// states: `n_leaders` (or `n_followers`) times the largest sampled headway (120 m in the
-    /// paper's setting). Slots left empty read as a player that left. In sparse SUMO traffic
-    /// the fourth follower was up to 193 m back, and the trained ego slowed on the ramp to let
-    /// it pass.
+    /// paper's setting). Slots left empty read as a player that left: a far follower is
+    /// outside what training placed, and the ego would slow on the ramp to let it pass.
     fn nearest_players(&self, cars: &[Car], k: usize) -> Vec<(String, usize)> {
         let s = &self.config.scenario;
         let headway = self.config.sampling.headway[1];

@@ -3,8 +3,8 @@
 //!
 //! A ramp vehicle joins the target lane the moment its `x` reaches `x_c`, so a crawl across
 //! `x_c` beside a passing car is an immediate overlap that no target-lane projection can undo
-//! (measured with the second training's policies: 31 of the 33 ego collisions under IDM and NE
-//! players were entries at 1-4 m/s next to a car at 10-13 m/s). The gate extends Section
+//! (most ego collisions of early trained policies were such slow entries; CHANGELOG.md,
+//! "Design notes"). The gate extends Section
 //! V-ii's feasibility to the ramp: an action is feasible for a ramp vehicle when the vehicle
 //! can still stop before `x_c` braking at up to `g`, unless entering is safe.
 //!
@@ -13,10 +13,8 @@
 //! crossing comes at the earliest two steps ahead (the first step an action can move it
 //! across) and at the latest when, having just passed the fastest speed `v_stop` from which it
 //! could still stop, it brakes at `g`: `2 dt + v_stop / g` (at most `tau_s`). A stopped
-//! vehicle at its stop line thus needs the gap of one entry, not a gap lasting `tau_s`
-//! (measured on `i80_merge` with the fourth training's single-agent policy: with the gap
-//! lasting `tau_s`, 71 to 86 egos merged in 900 s; with this window 183, as many as with
-//! SUMO's own drivers). At each of these times, with every vehicle at its current speed, its
+//! vehicle at its stop line thus needs the gap of one entry, not a gap lasting `tau_s` (which
+//! held egos far longer than SUMO's own drivers wait). At each of these times, with every vehicle at its current speed, its
 //! target-lane leader and follower at entry must both have a gap
 //! `|x_i - x_j| - clearance` above zero and a closing speed that braking at `b_safe` absorbs
 //! within that gap (MOBIL's safety criterion, Kesting, Treiber and Helbing 2007: the new
@@ -30,8 +28,7 @@
 //! action is `min(a, bound)`, then clipped to `[-g, g]` as every action is. A vehicle whose
 //! bound is below `-g` can no longer stop: it is committed, and the gate lets it go
 //! ([`gate_holds`]), because braking would only bring it in slower in front of the same
-//! follower (measured: every remaining collision of the trained policies was such a late
-//! full brake). The decision
+//! follower. The decision
 //! (safe or not) is discrete and carries no gradient; the bound is differentiable in `x` and `v`.
 
 use crate::config::Config;
