@@ -2,10 +2,10 @@
 
 use crate::cli::common::{pick_policy, print, progress_bar, usage};
 use anyhow::{Context, Result};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, combos, run_batch};
 use mpgdrive::sumo::{ControllerKind, MergeGeometry};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -23,8 +23,8 @@ pub struct BatchArgs {
     #[arg(long)]
     routes: String,
     /// Controllers, comma-separated: mpg, sarl, sumo.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "mpg,sarl,sumo")]
-    controllers: Vec<ControllerKind>,
+    #[arg(long, value_delimiter = ',', default_value = "mpg,sarl,sumo")]
+    controllers: Vec<String>,
     /// MARL policy (file or directory of seeds).
     #[arg(long, default_value = "policies/mpg")]
     policy: PathBuf,
@@ -59,13 +59,12 @@ pub struct BatchArgs {
 
 /// Runs `mpgdrive batch`.
 pub fn run(args: BatchArgs) -> Result<ExitCode> {
+    let kinds = parse_controllers(&args.controllers)?;
     let shard = parse_shard(args.shard.as_deref())?;
     let routes = find_routes(&args.routes)?;
-    check_inputs(&args)?;
-    let abs = |p: &PathBuf| std::fs::canonicalize(p).with_context(|| format!("{}", p.display()));
-    let routes = routes.iter().map(abs).collect::<Result<Vec<_>>>()?;
-    let controllers: Vec<String> = args.controllers.iter().map(|c| c.name().to_string()).collect();
-    let todo = combos(&routes, &controllers, &args.seeds, shard);
+    check_inputs(&args, &kinds)?;
+    let routes = routes.iter().map(|r| absolute(r)).collect::<Result<Vec<_>>>()?;
+    let todo = combos(&routes, &args.controllers, &args.seeds, shard);
     let jobs = match args.jobs {
         Some(0) => return Err(usage("--jobs must be at least 1")),
         Some(n) => n,
@@ -124,6 +123,20 @@ pub fn run(args: BatchArgs) -> Result<ExitCode> {
     }
 }
 
+/// `--controllers`, one line for an unknown name (as every other bad input gets).
+fn parse_controllers(names: &[String]) -> Result<Vec<ControllerKind>> {
+    names
+        .iter()
+        .map(|c| {
+            ControllerKind::from_str(c, false).map_err(|_| {
+                usage(format!(
+                    "--controllers: unknown controller `{c}` (mpg, sarl, sumo)"
+                ))
+            })
+        })
+        .collect()
+}
+
 /// `--shard K/N` (1-based); the whole batch when not given.
 fn parse_shard(shard: Option<&str>) -> Result<(usize, usize)> {
     let Some(s) = shard else {
@@ -152,7 +165,7 @@ fn find_routes(pattern: &str) -> Result<Vec<PathBuf>> {
 
 /// What every worker would refuse is refused here, before any run: the SUMO configuration, the
 /// configuration, the duration, the geometry against its network, the policies.
-fn check_inputs(args: &BatchArgs) -> Result<()> {
+fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<()> {
     if !args.sumocfg.is_file() {
         return Err(usage(format!(
             "--sumocfg {}: no such file",
@@ -177,21 +190,21 @@ fn check_inputs(args: &BatchArgs) -> Result<()> {
         (ControllerKind::Mpg, &args.policy),
         (ControllerKind::Sarl, &args.sarl_policy),
     ] {
-        if args.controllers.contains(&kind) {
+        if kinds.contains(&kind) {
             pick_policy(policy, None, &config)?;
         }
     }
     Ok(())
 }
 
+/// `path` made absolute (the workers run in their own directories).
+fn absolute(path: &Path) -> Result<PathBuf> {
+    std::fs::canonicalize(path).with_context(|| format!("{}", path.display()))
+}
+
 /// The `mpgdrive cosim` arguments every worker shares (absolute paths).
 fn worker_args(args: &BatchArgs) -> Result<Vec<String>> {
-    let abs = |p: &PathBuf| -> Result<String> {
-        Ok(std::fs::canonicalize(p)
-            .with_context(|| format!("{}", p.display()))?
-            .display()
-            .to_string())
-    };
+    let abs = |p: &Path| -> Result<String> { Ok(absolute(p)?.display().to_string()) };
     let mut common = vec![
         "cosim".to_string(),
         "--config".into(),

@@ -282,107 +282,88 @@ fn training_section(
     doc.push(Block::Heading(2, "Training".into()));
     let mpg_curves = curves_of(&args.policies.policy, &seeds(mpg))?;
     let sarl_curves = curves_of(&args.policies.sarl_policy, &seeds(sarl))?;
-    let fig7 = figures.join("training_potential.png");
-    let fig8 = figures.join("training_action_msd.png");
-    panels_png(
-        &fig7,
-        (1000, 450),
-        &[(
-            panel(
-                "Mean total potential on the probe set (Figure 7)",
-                "epoch",
-                "discounted potential",
-            ),
-            vec![mean_band(
-                "MARL, mean and 1 std over seeds",
-                &curve(&mpg_curves, |e| Some(e.probe_objective)),
-            )],
+    let over_seeds = "MARL, mean and 1 std over seeds";
+    figure(
+        doc,
+        &figures.join("training_potential.png"),
+        panel(
+            "Mean total potential on the probe set (Figure 7)",
+            "epoch",
+            "discounted potential",
+        ),
+        vec![mean_band(
+            over_seeds,
+            &curve(&mpg_curves, |e| Some(e.probe_objective)),
         )],
+        "Figure 7 analogue: mean total potential per epoch",
     )?;
-    panels_png(
-        &fig8,
-        (1000, 450),
-        &[(
-            panel(
-                "Mean squared action difference between successive epochs (Figure 8)",
-                "epoch",
-                "log10 (m^2/s^4)",
-            ),
-            vec![mean_band(
-                "MARL, mean and 1 std over seeds",
-                &curve(&mpg_curves, |e| {
-                    (e.action_msd > 0.0).then(|| e.action_msd.log10())
-                }),
-            )],
-        )],
+    let msd = curve(&mpg_curves, |e| {
+        (e.action_msd > 0.0).then(|| e.action_msd.log10())
+    });
+    figure(
+        doc,
+        &figures.join("training_action_msd.png"),
+        panel(
+            "Mean squared action difference between successive epochs (Figure 8)",
+            "epoch",
+            "log10 (m^2/s^4)",
+        ),
+        vec![mean_band(over_seeds, &msd)],
+        "Figure 8 analogue: policy change per epoch",
     )?;
-    doc.push(Block::Image(
-        fig7,
-        "Figure 7 analogue: mean total potential per epoch".into(),
-    ));
-    doc.push(Block::Image(
-        fig8,
-        "Figure 8 analogue: policy change per epoch".into(),
-    ));
     let ego_train = curve(&mpg_curves, |e| e.probe_ego_return);
     if ego_train.iter().all(|c| !c.is_empty()) {
-        let fig = figures.join("training_ego_return.png");
-        panels_png(
-            &fig,
-            (1000, 450),
-            &[(
-                panel(
-                    "Ego total reward on the probe set during training",
-                    "epoch",
-                    "ego discounted return",
+        figure(
+            doc,
+            &figures.join("training_ego_return.png"),
+            panel(
+                "Ego total reward on the probe set during training",
+                "epoch",
+                "ego discounted return",
+            ),
+            vec![
+                mean_band("MARL (players on the shared policy)", &ego_train),
+                mean_band(
+                    "single-agent RL (players on IDM)",
+                    &curve(&sarl_curves, |e| e.probe_ego_return),
                 ),
-                vec![
-                    mean_band("MARL (players on the shared policy)", &ego_train),
-                    mean_band(
-                        "single-agent RL (players on IDM)",
-                        &curve(&sarl_curves, |e| e.probe_ego_return),
-                    ),
-                ],
-            )],
+            ],
+            "Ego total reward during training, MARL against single-agent RL",
         )?;
-        doc.push(Block::Image(
-            fig,
-            "Ego total reward during training, MARL against single-agent RL".into(),
-        ));
     } else {
         doc.push(Block::Text(
             "The training curves of these policies do not record the ego's return (older curves): retrain to get the training comparison.".into(),
         ));
     }
-    let fig = figures.join("testing_ego_return.png");
-    panels_png(
-        &fig,
-        (1000, 450),
-        &[(
-            panel(
-                "Ego total reward in testing (all seeds' test scenarios, sorted)",
-                "fraction of test scenarios",
-                "ego discounted return",
+    figure(
+        doc,
+        &figures.join("testing_ego_return.png"),
+        panel(
+            "Ego total reward in testing (all seeds' test scenarios, sorted)",
+            "fraction of test scenarios",
+            "ego discounted return",
+        ),
+        vec![
+            line("MARL, NE players", quantiles(marl, Surrounding::Ne)),
+            line("MARL, IDM players", quantiles(marl, Surrounding::Idm)),
+            line("single-agent RL, NE players", quantiles(single, Surrounding::Ne)),
+            line(
+                "single-agent RL, IDM players",
+                quantiles(single, Surrounding::Idm),
             ),
-            vec![
-                line("MARL, NE players", quantiles(marl, Surrounding::Ne)),
-                line("MARL, IDM players", quantiles(marl, Surrounding::Idm)),
-                line("single-agent RL, NE players", quantiles(single, Surrounding::Ne)),
-                line(
-                    "single-agent RL, IDM players",
-                    quantiles(single, Surrounding::Idm),
-                ),
-            ],
-        )],
+        ],
+        "Ego total reward during testing, MARL against single-agent RL",
     )?;
-    doc.push(Block::Image(
-        fig,
-        "Ego total reward during testing, MARL against single-agent RL".into(),
-    ));
     doc.push(Block::Code(format!(
         "{exe} train --config {cfg} --mode mpg --seeds 0,1,2,3,4 --out policies/mpg\n{exe} train --config {cfg} --mode sarl --seeds 0,1,2,3,4 --out policies/sarl"
     )));
+    Ok(())
+}
 
+/// Draws one chart (1000 x 450) to `path` and adds it to the document.
+fn figure(doc: &mut Document, path: &Path, panel: Panel, series: Vec<Series>, caption: &str) -> Result<()> {
+    panels_png(path, (1000, 450), &[(panel, series)])?;
+    doc.push(Block::Image(path.to_path_buf(), caption.into()));
     Ok(())
 }
 

@@ -299,7 +299,7 @@ impl Controller {
             if let Some(lane) = c
                 .ramp_lane
                 .as_ref()
-                .filter(|_| c.x >= self.geometry.conflict_point)
+                .filter(|_| c.x >= self.rules.conflict_point())
             {
                 if let Some((_, index)) = self.geometry.merge_lane(lane) {
                     sumo.change_lane(&c.id, index, 1.0)?;
@@ -339,7 +339,7 @@ impl Controller {
         let Some(ts) = self.timespace.as_mut() else {
             return;
         };
-        let x_c = self.geometry.conflict_point;
+        let x_c = self.rules.conflict_point();
         for c in cars {
             let road = if c.ramp_lane.is_some() {
                 Road::Ramp
@@ -411,7 +411,7 @@ impl Controller {
                 found.push((id, lane));
             }
         }
-        let x_c = self.geometry.conflict_point;
+        let x_c = self.rules.conflict_point();
         let mut cars = Vec::with_capacity(found.len());
         self.lane_class.clear();
         for (id, lane) in found {
@@ -462,7 +462,7 @@ impl Controller {
             let ego = self.egos.get_mut(&c.id).expect("tracked");
             if !c.on_ramp {
                 ego.merged = true;
-                if c.x >= g.conflict_point + g.release_after {
+                if c.x >= self.rules.conflict_point() + g.release_after {
                     ego.end = Some(time);
                     self.players.remove(&c.id);
                     continue;
@@ -542,7 +542,7 @@ impl Controller {
     fn decide(&mut self, cars: &[Car], games: &[Game]) -> Vec<(usize, f64)> {
         let n_agents = self.config.n_agents();
         let dim = obs_dim(n_agents);
-        let x_c = self.geometry.conflict_point;
+        let x_c = self.rules.conflict_point();
         let lane_width = self.config.scenario.lane_width;
         let mut rows: Vec<(usize, usize, usize)> = Vec::new(); // (game, member, car)
         let mut obs: Vec<f32> = Vec::new();
@@ -621,7 +621,7 @@ impl Controller {
         match g.players {
             PlayerControl::All => true,
             PlayerControl::Controllable => {
-                car.x < g.conflict_point + g.release_after
+                car.x < self.rules.conflict_point() + g.release_after
                     && self
                         .types
                         .get(&car.id)
