@@ -378,12 +378,16 @@ impl Config {
         ] {
             non_negative(key, w)?;
         }
-        positive("idm.v0", i.v0)?;
-        positive("idm.time_headway", i.time_headway)?;
+        for (key, x) in [
+            ("idm.v0", i.v0),
+            ("idm.time_headway", i.time_headway),
+            ("idm.accel", i.accel),
+            ("idm.decel", i.decel),
+            ("idm.delta", i.delta),
+        ] {
+            positive(key, x)?;
+        }
         non_negative("idm.min_gap", i.min_gap)?;
-        positive("idm.accel", i.accel)?;
-        positive("idm.decel", i.decel)?;
-        positive("idm.delta", i.delta)?;
         check(
             "idm.delta",
             (i.delta * 2.0).fract() == 0.0 && i.delta <= 16.0,

@@ -64,28 +64,36 @@ pub trait Num: Sized {
     }
 }
 
+/// The operators both implementations spell the same way (`f64` and `Tensor` both implement
+/// the `std::ops` traits on references).
+macro_rules! arithmetic {
+    () => {
+        fn add(&self, o: &Self) -> Self {
+            self + o
+        }
+        fn sub(&self, o: &Self) -> Self {
+            self - o
+        }
+        fn mul(&self, o: &Self) -> Self {
+            self * o
+        }
+        fn div(&self, o: &Self) -> Self {
+            self / o
+        }
+        fn add_c(&self, c: f64) -> Self {
+            self + c
+        }
+        fn mul_c(&self, c: f64) -> Self {
+            self * c
+        }
+    };
+}
+
 impl Num for f64 {
     fn full(&self, c: f64) -> Self {
         c
     }
-    fn add(&self, o: &Self) -> Self {
-        self + o
-    }
-    fn sub(&self, o: &Self) -> Self {
-        self - o
-    }
-    fn mul(&self, o: &Self) -> Self {
-        self * o
-    }
-    fn div(&self, o: &Self) -> Self {
-        self / o
-    }
-    fn add_c(&self, c: f64) -> Self {
-        self + c
-    }
-    fn mul_c(&self, c: f64) -> Self {
-        self * c
-    }
+    arithmetic!();
     fn abs(&self) -> Self {
         f64::abs(*self)
     }
@@ -125,24 +133,7 @@ impl Num for Tensor {
     fn full(&self, c: f64) -> Self {
         self.full_like(c)
     }
-    fn add(&self, o: &Self) -> Self {
-        self + o
-    }
-    fn sub(&self, o: &Self) -> Self {
-        self - o
-    }
-    fn mul(&self, o: &Self) -> Self {
-        self * o
-    }
-    fn div(&self, o: &Self) -> Self {
-        self / o
-    }
-    fn add_c(&self, c: f64) -> Self {
-        self + c
-    }
-    fn mul_c(&self, c: f64) -> Self {
-        self * c
-    }
+    arithmetic!();
     fn abs(&self) -> Self {
         Tensor::abs(self)
     }
