@@ -1,6 +1,7 @@
 //! `mpgdrive routes`, `batch` and `merge` end to end on the paper's single-lane merge: a small
 //! batch and its summary, a killed batch resumed to the same summary, two shards merged to the
-//! same summary, and a malformed route file recorded as a failed run.
+//! same summary (also when both write into one folder at once), and a malformed route file
+//! recorded as a failed run.
 #![cfg(feature = "sumo")]
 
 use std::path::{Path, PathBuf};
@@ -161,6 +162,37 @@ fn two_shards_merge_to_the_summary_of_one_run() {
     let o = run({
         let mut c = bin();
         c.arg("merge").arg(&a).arg(&b).arg("--out").arg(&merged);
+        c
+    });
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(summary(&merged), summary(&whole));
+
+    // Both shards at once into one shared folder (as cluster tasks on a shared file system):
+    // distinct run names and write-then-rename keep every file whole.
+    let shared = fresh("shard-shared");
+    let mut children: Vec<_> = ["1/2", "2/2"]
+        .iter()
+        .map(|k| batch(&routes, &shared, &["--shard", k]).spawn().unwrap())
+        .collect();
+    for child in &mut children {
+        assert!(child.wait().unwrap().success());
+    }
+    assert_eq!(runs(&shared), 4);
+    for entry in std::fs::read_dir(shared.join("runs")).unwrap() {
+        let text = std::fs::read_to_string(entry.unwrap().path()).unwrap();
+        let run: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(run["status"], "ok");
+    }
+    for dir in [shared.clone(), shared.join("runs")] {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let name = entry.unwrap().file_name();
+            assert!(!name.to_string_lossy().contains(".tmp."), "temporary file left: {name:?}");
+        }
+    }
+    let merged = fresh("shard-shared-merged");
+    let o = run({
+        let mut c = bin();
+        c.arg("merge").arg(&shared).arg("--out").arg(&merged);
         c
     });
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
