@@ -186,7 +186,10 @@ fn two_shards_merge_to_the_summary_of_one_run() {
     for dir in [shared.clone(), shared.join("runs")] {
         for entry in std::fs::read_dir(dir).unwrap() {
             let name = entry.unwrap().file_name();
-            assert!(!name.to_string_lossy().contains(".tmp."), "temporary file left: {name:?}");
+            assert!(
+                !name.to_string_lossy().contains(".tmp."),
+                "temporary file left: {name:?}"
+            );
         }
     }
     let merged = fresh("shard-shared-merged");

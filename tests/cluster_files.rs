@@ -11,7 +11,10 @@ fn read(rel: &str) -> String {
 
 /// The number after `prefix` in `text` (up to the first non-digit).
 fn number_after(text: &str, prefix: &str) -> usize {
-    let at = text.find(prefix).unwrap_or_else(|| panic!("no `{prefix}` in {text}")) + prefix.len();
+    let at = text
+        .find(prefix)
+        .unwrap_or_else(|| panic!("no `{prefix}` in {text}"))
+        + prefix.len();
     text[at..]
         .chars()
         .take_while(char::is_ascii_digit)
@@ -25,8 +28,14 @@ fn the_readme_shows_the_cluster_files_verbatim() {
     let readme = read("README.md");
     let sbatch = read("scripts/slurm/mpgdrive-array.sbatch");
     let job = read("scripts/k8s/mpgdrive-indexed-job.yaml");
-    assert!(readme.contains(&format!("```sh\n{sbatch}```")), "README's Slurm block differs from the file");
-    assert!(readme.contains(&format!("```yaml\n{job}```")), "README's Kubernetes block differs from the file");
+    assert!(
+        readme.contains(&format!("```sh\n{sbatch}```")),
+        "README's Slurm block differs from the file"
+    );
+    assert!(
+        readme.contains(&format!("```yaml\n{job}```")),
+        "README's Kubernetes block differs from the file"
+    );
 }
 
 #[test]
@@ -35,10 +44,16 @@ fn the_slurm_array_runs_one_shard_per_task() {
     let tasks = number_after(&sbatch, "--array=1-");
     assert_eq!(number_after(&sbatch, "--shard \"${SLURM_ARRAY_TASK_ID}/"), tasks);
     assert!(sbatch.contains("--out \"results/shard-${SLURM_ARRAY_TASK_ID}\""));
-    assert!(sbatch.contains("--resume"), "a resubmitted task must resume its shard");
+    assert!(
+        sbatch.contains("--resume"),
+        "a resubmitted task must resume its shard"
+    );
     assert!(sbatch.starts_with("#!/bin/bash\n"));
     // sbatch reads #SBATCH lines only before the first command.
-    let first_command = sbatch.lines().position(|l| !l.is_empty() && !l.starts_with('#')).unwrap();
+    let first_command = sbatch
+        .lines()
+        .position(|l| !l.is_empty() && !l.starts_with('#'))
+        .unwrap();
     let directive = sbatch.lines().position(|l| l.starts_with("#SBATCH")).unwrap();
     assert!(directive < first_command);
 }
@@ -61,11 +76,19 @@ fn the_indexed_job_is_a_valid_manifest_with_one_shard_per_index() {
     assert_eq!(containers.len(), 1);
     let c = &containers[0];
     assert_eq!(c["image"].as_str(), Some("mpgdrive:latest"));
-    let command: Vec<&str> = c["command"].as_vec().unwrap().iter().map(|a| a.as_str().unwrap()).collect();
+    let command: Vec<&str> = c["command"]
+        .as_vec()
+        .unwrap()
+        .iter()
+        .map(|a| a.as_str().unwrap())
+        .collect();
     assert_eq!(&command[..2], ["sh", "-c"]);
     let line = command[2];
     assert!(line.starts_with("mpgdrive batch "), "{line}");
-    assert_eq!(number_after(line, "--shard $((JOB_COMPLETION_INDEX + 1))/"), completions);
+    assert_eq!(
+        number_after(line, "--shard $((JOB_COMPLETION_INDEX + 1))/"),
+        completions
+    );
     assert!(line.contains("--resume") && line.contains("--out /data/results/shard-$JOB_COMPLETION_INDEX"));
     // The volume the command writes to is mounted, and backed by a claim.
     let mount = &c["volumeMounts"][0];

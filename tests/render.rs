@@ -158,6 +158,17 @@ fn scenario_and_report_commands_write_their_pictures() {
         image::open(dir.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
     }
     assert!(dir.join("preset2.gif").is_file() && dir.join("preset2.json").is_file());
+    // The outcome names the players the ego merged between (none when it did not merge).
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("preset2.json")).unwrap()).unwrap();
+    match record["merged_at_step"].as_u64() {
+        None => assert!(record["merged_between"].is_null(), "{record}"),
+        Some(_) => {
+            let pair = record["merged_between"].as_array().unwrap();
+            assert_eq!(pair.len(), 2);
+            assert!(pair.iter().all(|p| p.as_u64().unwrap() <= 8), "{record}");
+        }
+    }
     let bad = bin()
         .args(["scenario", "--preset", "3", "--out"])
         .arg(&dir)

@@ -9,7 +9,8 @@ use mpgdrive::engine::rollout::Recording;
 use mpgdrive::eval::EpisodeMetrics;
 use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::render::episode::render_episode;
-use mpgdrive::world::scenarios::Preset;
+use mpgdrive::world::scenarios::{Preset, merged_between};
+use mpgdrive::world::state::Scene;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -53,12 +54,21 @@ pub fn scenario(
     let mut files = render_episode(out, &name, &title, config, &outcome)?;
     let metrics = EpisodeMetrics::of(&outcome);
     let dt = config.sim.dt;
+    // The first state after the ego passed the conflict point: step m's action led to it.
+    let between = outcome.ego_merged_at.and_then(|m| {
+        let n = outcome.final_scene.len();
+        let states = &outcome.trajectory.as_ref()?.states;
+        let vehicles = states.get((m + 1) * n..(m + 2) * n)?.to_vec();
+        Some(merged_between(&Scene { vehicles }))
+    });
     let summary = format!(
         "{title}: {}; ego merged at {}, collision {}, mean speed {:.2} m/s, mean |u| {:.3} m/s^2",
         preset.description(),
         outcome.ego_merged_at.map_or("never".to_string(), |m| format!(
-            "t = {:.1} s",
-            (m + 1) as f64 * dt
+            "t = {:.1} s between {} and {}",
+            (m + 1) as f64 * dt,
+            between.map_or("?".into(), |b| player_or_none(b[0])),
+            between.map_or("?".into(), |b| player_or_none(b[1]))
         )),
         outcome.collision.map_or("none".to_string(), |c| format!(
             "players {} and {} at t = {:.1} s",
@@ -77,6 +87,7 @@ pub fn scenario(
         "policy_seed": seed,
         "initial": preset.scene(config).vehicles.iter().map(|v| [v.x, v.v]).collect::<Vec<_>>(),
         "merged_at_step": outcome.ego_merged_at,
+        "merged_between": between,
         "collision": outcome.collision.map(|c| [c.step, c.a, c.b]),
         "metrics": metrics,
         "summary": summary,
@@ -85,6 +96,11 @@ pub fn scenario(
         .with_context(|| format!("writing {}", json.display()))?;
     files.push(json);
     Ok((files, summary))
+}
+
+/// A player number, or "none" for 0.
+fn player_or_none(p: usize) -> String {
+    if p == 0 { "none".into() } else { p.to_string() }
 }
 
 /// Runs `mpgdrive scenario`.

@@ -20,6 +20,9 @@ pub struct Collision {
 pub struct EgoStats {
     /// Smallest centre-to-centre (Euclidean) distance between the ego and any other player.
     pub min_distance: f64,
+    /// Smallest longitudinal distance `|x_j - x_ego|` between the ego and any other player in
+    /// its lane (infinite while none has shared it): the paper's notion of the metric.
+    pub min_lane_distance: f64,
     /// Sum of the ego's speed over the steps.
     pub sum_speed: f64,
     /// Sum of `|u|` of the ego's applied acceleration.
@@ -35,6 +38,7 @@ impl Default for EgoStats {
     fn default() -> Self {
         EgoStats {
             min_distance: f64::INFINITY,
+            min_lane_distance: f64::INFINITY,
             sum_speed: 0.0,
             sum_abs_accel: 0.0,
             sum_abs_jerk: 0.0,
@@ -51,6 +55,9 @@ impl EgoStats {
         for other in &scene.vehicles[1..] {
             let d = (other.x - ego.x).hypot(other.y - ego.y);
             self.min_distance = self.min_distance.min(d);
+            if other.on_ramp == ego.on_ramp {
+                self.min_lane_distance = self.min_lane_distance.min((other.x - ego.x).abs());
+            }
         }
         self.sum_speed += ego.v;
         self.sum_abs_accel += ego_accel.abs();

@@ -7,7 +7,7 @@
 
 use crate::config::Config;
 use crate::engine::rollout::Recording;
-use crate::eval::metrics::{EpisodeMetrics, Summary};
+use crate::eval::metrics::{EpisodeMetrics, Summary, distance_cell, mean_defined};
 use crate::policy::drive::{Others, policy_rollout};
 use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::mode::Mode;
@@ -156,6 +156,8 @@ pub struct MeanSummary {
     pub other_collisions: f64,
     /// Mean minimum distance (m).
     pub min_distance: f64,
+    /// Mean minimum in-lane distance (m) over the seeds where it is defined.
+    pub min_lane_distance: Option<f64>,
     /// Mean ego speed (m/s).
     pub mean_speed: f64,
     /// Mean acceleration magnitude (m/s^2).
@@ -174,6 +176,7 @@ pub fn mean_over_seeds(per_seed: &[(u64, Summary)]) -> MeanSummary {
         failures: avg(|s| s.failures as f64),
         other_collisions: avg(|s| s.other_collisions as f64),
         min_distance: avg(|s| s.min_distance),
+        min_lane_distance: mean_defined(per_seed.iter().filter_map(|(_, s)| s.min_lane_distance)),
         mean_speed: avg(|s| s.mean_speed),
         mean_abs_accel: avg(|s| s.mean_abs_accel),
         mean_abs_jerk: avg(|s| s.mean_abs_jerk),
@@ -339,6 +342,9 @@ pub fn table(head: &str, columns: &[(&str, MeanSummary)], others: bool) -> Strin
     }
     out += &row("Average minimum inter-vehicle distance (m)", &|m| {
         format!("{:.4}", m.min_distance)
+    });
+    out += &row("Average minimum in-lane distance (m)", &|m| {
+        distance_cell(m.min_lane_distance)
     });
     out += &row("Average ego vehicle speed (m/s)", &|m| {
         format!("{:.4}", m.mean_speed)

@@ -526,6 +526,9 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
     row("Average minimum inter-vehicle distance (m)", &|r| {
         format!("{:.4}", m(r).min_distance)
     });
+    row("Average minimum in-lane distance (m)", &|r| {
+        crate::eval::metrics::distance_cell(m(r).min_lane_distance)
+    });
     row("Average ego vehicle speed (m/s)", &|r| {
         format!("{:.4}", m(r).mean_speed)
     });

@@ -76,3 +76,63 @@ impl Preset {
         Scene { vehicles }
     }
 }
+
+/// The players the ego merged between, as player numbers `[front, back]` (0 for none): its
+/// nearest target-lane player ahead and behind in `scene`, the first state after the ego
+/// passed the conflict point.
+pub fn merged_between(scene: &Scene) -> [usize; 2] {
+    let ego = scene.ego();
+    let lane = || {
+        scene
+            .vehicles
+            .iter()
+            .enumerate()
+            .skip(1)
+            .filter(|(_, v)| !v.on_ramp)
+    };
+    let front = lane()
+        .filter(|(_, v)| v.x >= ego.x)
+        .min_by(|a, b| a.1.x.total_cmp(&b.1.x))
+        .map_or(0, |(i, _)| i);
+    let back = lane()
+        .filter(|(_, v)| v.x < ego.x)
+        .max_by(|a, b| a.1.x.total_cmp(&b.1.x))
+        .map_or(0, |(i, _)| i);
+    [front, back]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn car(x: f64, on_ramp: bool) -> Vehicle {
+        Vehicle {
+            x,
+            y: if on_ramp { -3.66 } else { 0.0 },
+            v: 10.0,
+            phi: 0.0,
+            on_ramp,
+        }
+    }
+
+    #[test]
+    fn the_ego_merged_between_its_nearest_target_lane_players() {
+        // Players 1-2 ahead (2 nearer), 3-4 behind (3 nearer); a ramp car right behind is no
+        // target-lane player.
+        let scene = Scene {
+            vehicles: vec![
+                car(181.0, false),
+                car(230.0, false),
+                car(190.0, false),
+                car(170.0, false),
+                car(150.0, false),
+                car(178.0, true),
+            ],
+        };
+        assert_eq!(merged_between(&scene), [2, 3]);
+        let alone = Scene {
+            vehicles: vec![car(181.0, false), car(150.0, false)],
+        };
+        assert_eq!(merged_between(&alone), [0, 1]);
+    }
+}
