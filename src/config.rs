@@ -98,6 +98,12 @@ pub struct SimConfig {
     /// Largest braking a merge may ask of the new follower or of the merging vehicle (m/s^2).
     #[serde(default = "default_b_safe")]
     pub b_safe: f64,
+    /// With `feasibility`: also project (and gate) the players a non-learning driver drives
+    /// (IDM, constant speed). Off: only policy-driven players follow the feasibility rules and
+    /// the others drive by their own rule, as the paper's surrounding players do. On when
+    /// absent (files written before it existed).
+    #[serde(default = "yes")]
+    pub project_non_learning: bool,
     /// End the episode for everyone at the first collision.
     pub terminate_on_collision: bool,
     /// With termination: charge each player its collision-step reward for every remaining
@@ -208,6 +214,10 @@ fn one() -> usize {
 }
 
 /// MOBIL's safe braking (Kesting, Treiber and Helbing 2007).
+fn yes() -> bool {
+    true
+}
+
 fn default_b_safe() -> f64 {
     4.0
 }

@@ -36,6 +36,7 @@ fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, term
             steps,
             feasibility,
             terminate,
+            tensor::Learning::All,
             |b, nb, _| idm_actions(config, b, nb) * &weights,
         )
     });
@@ -101,9 +102,16 @@ fn potential_gradient_matches_finite_differences() {
     let config = paper();
     let scenes = sample_scenes(&config, 4, 0, 8);
     let phi = |theta: &Tensor| {
-        tensor::rollout(&config, &scenes, Kind::Double, 60, false, false, |b, nb, _| {
-            idm_actions(&config, b, nb) + theta
-        })
+        tensor::rollout(
+            &config,
+            &scenes,
+            Kind::Double,
+            60,
+            false,
+            false,
+            tensor::Learning::All,
+            |b, nb, _| idm_actions(&config, b, nb) + theta,
+        )
         .potential
         .mean(Kind::Double)
     };
@@ -120,4 +128,74 @@ fn potential_gradient_matches_finite_differences() {
         (grad - fd).abs() < 1e-5 * fd.abs().max(1.0),
         "autograd {grad} vs finite difference {fd}"
     );
+}
+
+/// Constant speed for every player, the ego alone a learning player (as a single-agent policy
+/// among non-learning drivers).
+struct EgoLearnsConstSpeed;
+
+impl mpgdrive::engine::rollout::Actor for EgoLearnsConstSpeed {
+    fn act(
+        &mut self,
+        _step: usize,
+        _scenes: &[mpgdrive::world::Scene],
+        _nb: &[mpgdrive::world::neighbors::Neighbors],
+        out: &mut [f64],
+    ) {
+        out.fill(0.0);
+    }
+    fn learning(&self, i: usize) -> bool {
+        i == 0
+    }
+}
+
+#[test]
+fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
+    let mut config = paper();
+    config.sim.project_non_learning = false;
+    let scenes = sample_scenes(&config, 5, 0, 16);
+    let steps = 100;
+    let opts = RolloutOptions {
+        steps,
+        threads: 1,
+        recording: mpgdrive::engine::rollout::Recording::Full,
+        ..RolloutOptions::from_config(&config)
+    };
+    let scalar = rollout(&config, &opts, &scenes, || EgoLearnsConstSpeed);
+    // Constant-speed players really keep their speed: no projection moved them.
+    for o in &scalar {
+        let t = o.trajectory.as_ref().unwrap();
+        let moved = t
+            .actions
+            .chunks(9)
+            .take(o.steps)
+            .any(|a| a[1..].iter().any(|&u| u != 0.0));
+        assert!(!moved, "a non-learning player was projected");
+    }
+    // The ego is still held by the rules: some ego action differs from its raw 0.
+    assert!(scalar.iter().any(|o| {
+        o.trajectory
+            .as_ref()
+            .unwrap()
+            .actions
+            .chunks(9)
+            .any(|a| a[0] != 0.0)
+    }));
+    let t = tch::no_grad(|| {
+        tensor::rollout(
+            &config,
+            &scenes,
+            Kind::Double,
+            steps,
+            true,
+            config.sim.terminate_on_collision,
+            tensor::Learning::Ego,
+            |b, _, _| b.x.zeros_like(),
+        )
+    });
+    let potential = Vec::<f64>::try_from(t.potential).unwrap();
+    for (k, o) in scalar.iter().enumerate() {
+        let tol = 1e-6 * o.potential_return.abs().max(1.0);
+        assert!((o.potential_return - potential[k]).abs() < tol, "scenario {k}");
+    }
 }

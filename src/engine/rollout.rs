@@ -67,6 +67,13 @@ pub trait Actor {
     /// Writes the raw acceleration of player `i` of scene `b` into `out[b * n + i]` (`n`
     /// players per scene). `neighbors` is laid out the same way.
     fn act(&mut self, step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]);
+
+    /// Whether a policy drives player `i` (a learning player). With
+    /// `sim.project_non_learning` off, only these follow the feasibility rules.
+    fn learning(&self, i: usize) -> bool {
+        let _ = i;
+        true
+    }
 }
 
 /// Fixed drivers: one for the ego, one for every other player.
@@ -91,6 +98,10 @@ impl DriverActor {
 }
 
 impl Actor for DriverActor {
+    fn learning(&self, _i: usize) -> bool {
+        false
+    }
+
     fn act(&mut self, _step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]) {
         for (b, scene) in scenes.iter().enumerate() {
             let n = scene.len();
@@ -203,7 +214,7 @@ fn run_chunk(
             for i in 0..n {
                 applied[i] = applied_action(
                     &rules,
-                    opts.feasibility,
+                    opts.feasibility && (config.sim.project_non_learning || actor.learning(i)),
                     scene,
                     i,
                     &neighbors[b * n + i],

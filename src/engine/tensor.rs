@@ -183,14 +183,25 @@ pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> 
     idm_accel(&batch.x, &batch.v, &leader, config.vehicle.length, &config.idm)
 }
 
+/// Which players a policy drives in a tensor rollout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Learning {
+    /// Every player (the shared policy).
+    All,
+    /// The ego only (the others on a non-learning driver).
+    Ego,
+}
+
 /// Applied actions: feasibility projection for target-lane players and the merge gate for
-/// ramp players (when `feasibility`), then `[-g, g]` and the speed bounds.
+/// ramp players (when `feasibility`; with `only`, for the players where it is 1), then
+/// `[-g, g]` and the speed bounds.
 pub fn apply_limits(
     rules: &WorldRules,
     batch: &TensorBatch,
     nb: &NeighborIndex,
     raw: &Tensor,
     feasibility: bool,
+    only: Option<&Tensor>,
 ) -> Tensor {
     let dt = rules.dt;
     let a = if feasibility {
@@ -213,6 +224,10 @@ pub fn apply_limits(
         }
     } else {
         raw.shallow_clone()
+    };
+    let a = match only {
+        Some(mask) if feasibility => <Tensor as Num>::select(mask, &a, raw),
+        _ => a,
     };
     clip_action(&a, &batch.v, rules.max_accel, rules.v_min, rules.v_max, dt)
 }
@@ -322,6 +337,7 @@ pub fn rollout(
     steps: usize,
     feasibility: bool,
     terminate_on_collision: bool,
+    learning: Learning,
     mut act: impl FnMut(&TensorBatch, &NeighborIndex, usize) -> Tensor,
 ) -> TensorReturns {
     let mut batch = TensorBatch::from_scenes(scenes, kind);
@@ -332,10 +348,16 @@ pub fn rollout(
     let mut discount = 1.0;
     let pairs = Pairs::new(scenes[0].len(), kind);
     let rules = WorldRules::new(config);
+    // With `sim.project_non_learning` off, the feasibility rules apply to the ego alone when
+    // only the ego learns.
+    let only = (!config.sim.project_non_learning && learning == Learning::Ego).then(|| {
+        let ego = Tensor::zeros([n], (kind, tch::Device::Cpu)).index_fill(0, &Tensor::from(0i64), 1.0);
+        ego.unsqueeze(0).expand([b, n], false)
+    });
     for step in 0..steps {
         let nb = NeighborIndex::of(&batch);
         let raw = act(&batch, &nb, step);
-        let u = apply_limits(&rules, &batch, &nb, &raw, feasibility);
+        let u = apply_limits(&rules, &batch, &nb, &raw, feasibility, only.as_ref());
         let (r, phi) = rewards(config, &pairs, &batch, &u);
         let live = Tensor::from_slice(&alive).to_kind(kind);
         returns = returns + &r * live.unsqueeze(1) * discount;

@@ -92,7 +92,7 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
 
 /// The world rules a trained policy's behaviour rests on, by configuration key: the step, the
 /// limits, the vehicle box, the geometry and the feasibility rules (flags as 0 or 1).
-fn world_rules(c: &Config) -> [(&'static str, f64); 14] {
+fn world_rules(c: &Config) -> [(&'static str, f64); 15] {
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     [
         ("sim.dt", c.sim.dt),
@@ -108,6 +108,7 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 14] {
         ("sim.safety_gap", c.sim.safety_gap),
         ("sim.merge_gate", flag(c.sim.merge_gate)),
         ("sim.b_safe", c.sim.b_safe),
+        ("sim.project_non_learning", flag(c.sim.project_non_learning)),
         ("reward.v_desired", c.reward.v_desired),
     ]
 }

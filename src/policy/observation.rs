@@ -181,6 +181,10 @@ impl<P: BatchPolicy> PolicyActor<P> {
 }
 
 impl<P: BatchPolicy> Actor for PolicyActor<P> {
+    fn learning(&self, i: usize) -> bool {
+        i == 0 || self.all_players || self.others_policy.is_some()
+    }
+
     fn act(&mut self, _step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]) {
         let n = self.config.n_agents();
         let dim = obs_dim(n);

@@ -242,6 +242,10 @@ impl Stack {
             config.n_steps(),
             config.sim.feasibility,
             config.sim.terminate_on_collision,
+            match self.mode {
+                Mode::Mpg => tensor::Learning::All,
+                Mode::Sarl => tensor::Learning::Ego,
+            },
             |b, nb, _| tensor_actions(config, &self.net, self.mode, b, nb),
         );
         let per_episode = match self.mode {
