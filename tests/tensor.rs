@@ -11,6 +11,22 @@ use mpgdrive::world::Driver;
 use mpgdrive::world::sampler::sample_scenes;
 use tch::{Kind, Tensor};
 
+/// An f64 tensor rollout.
+fn double(
+    steps: usize,
+    feasibility: bool,
+    terminate_on_collision: bool,
+    learning: tensor::Learning,
+) -> tensor::TensorRun {
+    tensor::TensorRun {
+        kind: Kind::Double,
+        steps,
+        feasibility,
+        terminate_on_collision,
+        learning,
+    }
+}
+
 /// Runs both engines on the same scenes and checks returns and potentials agree; returns the
 /// number of collisions.
 fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, terminate: bool) -> usize {
@@ -32,11 +48,7 @@ fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, term
         tensor::rollout(
             config,
             &scenes,
-            Kind::Double,
-            steps,
-            feasibility,
-            terminate,
-            tensor::Learning::All,
+            &double(steps, feasibility, terminate, tensor::Learning::All),
             |b, nb, _| idm_actions(config, b, nb) * &weights,
         )
     });
@@ -105,11 +117,7 @@ fn potential_gradient_matches_finite_differences() {
         tensor::rollout(
             &config,
             &scenes,
-            Kind::Double,
-            60,
-            false,
-            false,
-            tensor::Learning::All,
+            &double(60, false, false, tensor::Learning::All),
             |b, nb, _| idm_actions(&config, b, nb) + theta,
         )
         .potential
@@ -182,16 +190,13 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
             .any(|a| a[0] != 0.0)
     }));
     let t = tch::no_grad(|| {
-        tensor::rollout(
-            &config,
-            &scenes,
-            Kind::Double,
+        let run = double(
             steps,
             true,
             config.sim.terminate_on_collision,
             tensor::Learning::Ego,
-            |b, _, _| b.x.zeros_like(),
-        )
+        );
+        tensor::rollout(&config, &scenes, &run, |b, _, _| b.x.zeros_like())
     });
     let potential = Vec::<f64>::try_from(t.potential).unwrap();
     for (k, o) in scalar.iter().enumerate() {

@@ -324,7 +324,22 @@ pub struct TensorReturns {
     pub potential: Tensor,
 }
 
-/// Runs `steps` steps; `act` gives the raw actions of every player from the state and its
+/// What a tensor rollout runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TensorRun {
+    /// Tensors' kind (f32 for training, f64 where exactness is checked).
+    pub kind: Kind,
+    /// Number of steps.
+    pub steps: usize,
+    /// Apply the feasibility rules (projection and gate).
+    pub feasibility: bool,
+    /// Stop counting an episode's rewards after its first collision.
+    pub terminate_on_collision: bool,
+    /// Which players a policy drives.
+    pub learning: Learning,
+}
+
+/// Runs `run.steps` steps; `act` gives the raw actions of every player from the state and its
 /// neighbours. An episode stops counting rewards after its first collision when
 /// `terminate_on_collision` (charging the collision step's rewards for the remaining steps
 /// with `sim.absorbing_collision`, as the scalar engine does).
@@ -333,13 +348,16 @@ pub struct TensorReturns {
 pub fn rollout(
     config: &Config,
     scenes: &[Scene],
-    kind: Kind,
-    steps: usize,
-    feasibility: bool,
-    terminate_on_collision: bool,
-    learning: Learning,
+    run: &TensorRun,
     mut act: impl FnMut(&TensorBatch, &NeighborIndex, usize) -> Tensor,
 ) -> TensorReturns {
+    let TensorRun {
+        kind,
+        steps,
+        feasibility,
+        terminate_on_collision,
+        learning,
+    } = *run;
     let mut batch = TensorBatch::from_scenes(scenes, kind);
     let (b, n) = (scenes.len() as i64, scenes[0].len() as i64);
     let mut returns = Tensor::zeros([b, n], (kind, tch::Device::Cpu));

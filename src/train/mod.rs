@@ -235,19 +235,19 @@ impl Stack {
             .iter()
             .flat_map(|&s| sample_scenes(config, purpose_seed(s, Purpose::Train), epoch * t.batch, t.batch))
             .collect();
-        let out = tensor::rollout(
-            config,
-            &scenes,
-            Kind::Float,
-            config.n_steps(),
-            config.sim.feasibility,
-            config.sim.terminate_on_collision,
-            match self.mode {
+        let run = tensor::TensorRun {
+            kind: Kind::Float,
+            steps: config.n_steps(),
+            feasibility: config.sim.feasibility,
+            terminate_on_collision: config.sim.terminate_on_collision,
+            learning: match self.mode {
                 Mode::Mpg => tensor::Learning::All,
                 Mode::Sarl => tensor::Learning::Ego,
             },
-            |b, nb, _| tensor_actions(config, &self.net, self.mode, b, nb),
-        );
+        };
+        let out = tensor::rollout(config, &scenes, &run, |b, nb, _| {
+            tensor_actions(config, &self.net, self.mode, b, nb)
+        });
         let per_episode = match self.mode {
             Mode::Mpg => out.potential,
             Mode::Sarl => out.returns.select(1, 0),
