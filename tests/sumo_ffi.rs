@@ -96,6 +96,8 @@ fn an_added_vehicle_drives_at_the_commanded_speed() {
         "{s:?}"
     );
     sumo.set_speed_mode("probe", 0).unwrap();
+    sumo.set_color("probe", [220, 20, 20]).unwrap();
+    assert!(sumo.set_color("nobody", [0, 0, 0]).is_err());
     sumo.set_speed("probe", 12.0).unwrap();
     sumo.step().unwrap();
     let t = sumo.vehicle("probe").unwrap();

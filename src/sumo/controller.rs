@@ -200,7 +200,15 @@ pub struct Controller {
     order: Vec<usize>,
     /// The time-space record, when asked for.
     timespace: Option<TimeSpace>,
+    /// Colour the vehicles it drives, for sumo-gui.
+    colour: bool,
 }
+
+/// Colours of the vehicles a controller drives, as sumo-gui draws them: the egos red, the
+/// other players the MPG policy drives orange. A vehicle keeps its colour once handed back.
+pub const EGO_COLOUR: [u8; 3] = [220, 20, 20];
+/// See [`EGO_COLOUR`].
+pub const PLAYER_COLOUR: [u8; 3] = [255, 150, 0];
 
 impl Controller {
     /// A controller; `policy` is required for `mpg` and `sarl`. Every rule (observation,
@@ -237,7 +245,14 @@ impl Controller {
             timing: ControllerTiming::default(),
             order: Vec::new(),
             timespace: None,
+            colour: false,
         }
+    }
+
+    /// Colours the vehicles it takes over from now on ([`EGO_COLOUR`], [`PLAYER_COLOUR`]), so
+    /// that sumo-gui shows which vehicles the policy drives. The colour changes nothing else.
+    pub fn colour_driven(&mut self) {
+        self.colour = true;
     }
 
     /// Records every ramp and target-lane vehicle at every step from now on, for a
@@ -291,6 +306,10 @@ impl Controller {
             if self.controlled.insert(c.id.clone()) {
                 sumo.set_speed_mode(&c.id, self.modes.speed)?;
                 sumo.set_lane_change_mode(&c.id, self.modes.lane_change)?;
+                if self.colour {
+                    let ego = self.egos.contains_key(&c.id);
+                    sumo.set_color(&c.id, if ego { EGO_COLOUR } else { PLAYER_COLOUR })?;
+                }
             }
             // SUMO's next speed is the model's current one (module docs: one-step lag).
             sumo.set_speed(&c.id, c.v)?;

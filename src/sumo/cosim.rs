@@ -283,6 +283,9 @@ pub fn run_controller(
     if settings.timespace {
         controller.record_timespace();
     }
+    if !matches!(settings.launch, Launch::Libsumo) {
+        controller.colour_driven(); // someone may be watching in sumo-gui
+    }
     let mut sumo_us = 0.0;
     let mut steps = 0u64;
     while more_to_run(&sumo, settings.end, dt)? {

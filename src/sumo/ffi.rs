@@ -49,6 +49,7 @@ pub struct Api {
     pub set_speed: unsafe extern "C" fn(*const c_char, f64) -> c_int,
     pub set_speed_mode: unsafe extern "C" fn(*const c_char, c_int) -> c_int,
     pub set_lane_change_mode: unsafe extern "C" fn(*const c_char, c_int) -> c_int,
+    pub set_color: unsafe extern "C" fn(*const c_char, c_int, c_int, c_int) -> c_int,
     pub change_lane: unsafe extern "C" fn(*const c_char, c_int, f64) -> c_int,
     pub vehicle_add: unsafe extern "C" fn(
         *const c_char,
@@ -87,6 +88,7 @@ macro_rules! api {
             set_speed: $m::set_speed,
             set_speed_mode: $m::set_speed_mode,
             set_lane_change_mode: $m::set_lane_change_mode,
+            set_color: $m::set_color,
             change_lane: $m::change_lane,
             vehicle_add: $m::vehicle_add,
             move_to: $m::move_to,

@@ -396,6 +396,15 @@ impl Sumo {
         })
     }
 
+    /// Colours a vehicle as sumo-gui draws it (RGB, 0-255).
+    pub fn set_color(&mut self, id: &str, [r, g, b]: [u8; 3]) -> Result<(), SumoError> {
+        let f = self.api.set_color;
+        self.with_id("setColor", id, |p| {
+            // SAFETY: the pointer is a valid C string for the call.
+            unsafe { f(p, c_int::from(r), c_int::from(g), c_int::from(b)) }
+        })
+    }
+
     /// Sets SUMO's lane-change mode bits.
     pub fn set_lane_change_mode(&mut self, id: &str, mode: i32) -> Result<(), SumoError> {
         let f = self.api.set_lane_change_mode;

@@ -194,6 +194,10 @@ int MPG_FN(set_speed_mode)(const char* id, int mode) {
     return guarded([&] { api::Vehicle::setSpeedMode(id, mode); });
 }
 
+int MPG_FN(set_color)(const char* id, int r, int g, int b) {
+    return guarded([&] { api::Vehicle::setColor(id, libsumo::TraCIColor(r, g, b, 255)); });
+}
+
 int MPG_FN(set_lane_change_mode)(const char* id, int mode) {
     return guarded([&] { api::Vehicle::setLaneChangeMode(id, mode); });
 }

@@ -91,6 +91,8 @@ int MPG_FN(vehicle_leader)(const char* id, double dist, const char** buf, size_t
 int MPG_FN(set_speed)(const char* id, double speed);
 int MPG_FN(set_speed_mode)(const char* id, int mode);
 int MPG_FN(set_lane_change_mode)(const char* id, int mode);
+/* Colours a vehicle (as drawn by sumo-gui), opaque, channels 0-255. */
+int MPG_FN(set_color)(const char* id, int r, int g, int b);
 int MPG_FN(change_lane)(const char* id, int lane_index, double duration);
 int MPG_FN(vehicle_add)(const char* id, const char* route, const char* type, const char* depart,
                         const char* lane, const char* pos, const char* speed);
