@@ -253,15 +253,7 @@ mod tests {
     use crate::world::neighbors::find_neighbors;
     use crate::world::state::Vehicle;
 
-    fn car(x: f64, v: f64, on_ramp: bool) -> Vehicle {
-        Vehicle {
-            x,
-            y: if on_ramp { -3.66 } else { 0.0 },
-            v,
-            phi: 0.0,
-            on_ramp,
-        }
-    }
+    use crate::world::state::test_car as car;
 
     /// Every vehicle's observation of a scene of three (x_c = 180 m).
     fn observations(vehicles: Vec<Vehicle>) -> Vec<Vec<f32>> {

@@ -104,15 +104,10 @@ pub fn merged_between(scene: &Scene) -> [usize; 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::world::state::test_car;
 
     fn car(x: f64, on_ramp: bool) -> Vehicle {
-        Vehicle {
-            x,
-            y: if on_ramp { -3.66 } else { 0.0 },
-            v: 10.0,
-            phi: 0.0,
-            on_ramp,
-        }
+        test_car(x, 10.0, on_ramp)
     }
 
     #[test]

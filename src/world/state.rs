@@ -47,3 +47,16 @@ impl Scene {
 pub fn player_label(i: usize) -> String {
     if i == 0 { "ego".to_string() } else { i.to_string() }
 }
+
+/// A vehicle for unit tests: at `x` with speed `v`, on the ramp (`y = -3.66`, the I-80 lane
+/// width) or in the target lane, heading along the road.
+#[cfg(test)]
+pub(crate) fn test_car(x: f64, v: f64, on_ramp: bool) -> Vehicle {
+    Vehicle {
+        x,
+        y: if on_ramp { -3.66 } else { 0.0 },
+        v,
+        phi: 0.0,
+        on_ramp,
+    }
+}
