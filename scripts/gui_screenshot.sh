@@ -9,25 +9,20 @@
 # Usage (from the repository root, after `make build`): scripts/gui_screenshot.sh [OUT.png]
 # Environment: SUMOCFG (default the I-80 merge), CONTROLLER (mpg), SNAPSHOT_TIME (80 s),
 # VIEW_X, VIEW_Y, ZOOM (the view's centre in network metres and sumo-gui's zoom).
-# The wheel (about 150 MB) is installed into ~/.cache/mpgdrive/eclipse-sumo-1.28.0 when missing.
+# The wheel is installed by scripts/sumo_wheel.sh when missing.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 out=$(realpath -m "${1:-$repo/docs/images/sumo_gui_i80.png}")
 sumocfg=${SUMOCFG:-sumo_nets/i80_merge/i80.sumocfg}
 controller=${CONTROLLER:-mpg}
 at=${SNAPSHOT_TIME:-80}
-wheel_version=1.28.0
-wheel=${XDG_CACHE_HOME:-$HOME/.cache}/mpgdrive/eclipse-sumo-$wheel_version
 bin=$repo/target/release/mpgdrive
 die() { echo "gui_screenshot: $*" >&2; exit 1; }
 
 [ -x "$bin" ] || die "no $bin: run \`make build\` first"
 command -v xvfb-run >/dev/null || die "xvfb-run is missing: apt-get install -y xvfb"
-if [ ! -x "$wheel/sumo/bin/sumo-gui" ]; then
-    echo "gui_screenshot: installing the eclipse-sumo $wheel_version wheel into $wheel"
-    python3 -m pip install --quiet --no-deps --target "$wheel" "eclipse-sumo==$wheel_version"
-fi
-gui_home=$wheel/sumo
+gui_home=$("$repo/scripts/sumo_wheel.sh")
+gui_version=$("$gui_home/bin/sumo" --version | head -1)
 
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -56,4 +51,4 @@ wait "$gui" || die "sumo-gui failed: $(tail -3 "$work/gui.log")"
 [ -s "$work/shot.png" ] || die "sumo-gui wrote no snapshot"
 mkdir -p "$(dirname "$out")"
 mv "$work/shot.png" "$out"
-echo "gui_screenshot: $out ($controller controller at t = $at s, sumo-gui $wheel_version, $($bin --version))"
+echo "gui_screenshot: $out ($controller controller at t = $at s, $gui_version, $($bin --version))"
