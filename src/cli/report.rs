@@ -226,6 +226,10 @@ fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Stud
         args.policies.sarl_policy.display(),
         args.policies.policy.display()
     )));
+    doc.push(Block::Heading(3, "The paper's claims".into()));
+    let claims = mpgdrive::eval::claims::markdown(&mpgdrive::eval::claims::check(marl, single));
+    include_markdown(doc, &claims);
+    atomic::write(&args.out.join("claims.md"), &claims)?;
     atomic::write(&args.out.join("table2.md"), marl.markdown())?;
     atomic::write(&args.out.join("table3.md"), single.markdown())?;
 
