@@ -41,24 +41,22 @@ pub fn check(marl: &Study, single: &Study) -> Vec<Claim> {
     let pair = |a: &MeanSummary, b: &MeanSummary, f: Metric| format!("{:.2} vs {:.2}", f(a), f(b));
     let lane: Metric = |m| m.min_lane_distance.unwrap_or(f64::NAN);
     if let (Some(ne), Some(idm)) = (m_ne, m_idm) {
-        claims.push(Claim {
-            claim: "MARL: no ego collision under NE and IDM players",
-            paper: "0/500 and 0/500",
-            ours: format!(
-                "{}/{} and {}/{}",
-                ne.collisions, ne.episodes, idm.collisions, idm.episodes
-            ),
-            holds: ne.collisions == 0.0 && idm.collisions == 0.0,
-        });
-        claims.push(Claim {
-            claim: "MARL: no failure to merge under NE and IDM players",
-            paper: "0/500 and 0/500",
-            ours: format!(
-                "{}/{} and {}/{}",
-                ne.failures, ne.episodes, idm.failures, idm.episodes
-            ),
-            holds: ne.failures == 0.0 && idm.failures == 0.0,
-        });
+        let counts: [(&'static str, Metric); 2] = [
+            ("MARL: no ego collision under NE and IDM players", |m| {
+                m.collisions
+            }),
+            ("MARL: no failure to merge under NE and IDM players", |m| {
+                m.failures
+            }),
+        ];
+        for (claim, f) in counts {
+            claims.push(Claim {
+                claim,
+                paper: "0/500 and 0/500",
+                ours: format!("{}/{} and {}/{}", f(ne), ne.episodes, f(idm), idm.episodes),
+                holds: f(ne) == 0.0 && f(idm) == 0.0,
+            });
+        }
         claims.push(Claim {
             claim: "MARL, NE against IDM players: larger minimum distance (in-lane)",
             paper: "40.73 vs 13.65 m",
@@ -202,23 +200,35 @@ mod tests {
         }
     }
 
+    /// A study from rows (collisions, speed, acceleration, jerk, in-lane distance) for NE, IDM
+    /// and constant-speed players.
+    fn paper_table(mode: Mode, rows: [[f64; 5]; 3]) -> Study {
+        let kinds = [Surrounding::Ne, Surrounding::Idm, Surrounding::Const];
+        let columns = kinds
+            .iter()
+            .zip(rows)
+            .map(|(&s, [c, v, a, j, d])| col(s, c, v, a, j, d))
+            .collect();
+        study(mode, columns)
+    }
+
     #[test]
     fn the_papers_own_tables_satisfy_every_claim_but_similar_jerk() {
         // Tables II and III of the paper, with its distances taken as in-lane ones.
-        let marl = study(
+        let marl = paper_table(
             Mode::Mpg,
-            vec![
-                col(Surrounding::Ne, 0.0, 11.0292, 0.5017, 0.2466, 40.7305),
-                col(Surrounding::Idm, 0.0, 5.7136, 0.5760, 2.2602, 13.6459),
-                col(Surrounding::Const, 15.4, 1.8372, 0.2167, 0.0374, 25.7577),
+            [
+                [0.0, 11.0292, 0.5017, 0.2466, 40.7305],
+                [0.0, 5.7136, 0.5760, 2.2602, 13.6459],
+                [15.4, 1.8372, 0.2167, 0.0374, 25.7577],
             ],
         );
-        let single = study(
+        let single = paper_table(
             Mode::Sarl,
-            vec![
-                col(Surrounding::Ne, 0.0, 12.0469, 3.0121, 11.2172, 30.2177),
-                col(Surrounding::Idm, 0.0, 9.7332, 2.9777, 9.7573, 14.8224),
-                col(Surrounding::Const, 15.6, 2.1027, 0.6665, 1.1170, 11.4778),
+            [
+                [0.0, 12.0469, 3.0121, 11.2172, 30.2177],
+                [0.0, 9.7332, 2.9777, 9.7573, 14.8224],
+                [15.6, 2.1027, 0.6665, 1.1170, 11.4778],
             ],
         );
         let claims = check(&marl, &single);
