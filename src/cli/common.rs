@@ -5,6 +5,8 @@ use anyhow::Result;
 use clap::Args;
 use mpgdrive::config::Config;
 use mpgdrive::eval::study::{Rules, load_policies};
+use mpgdrive::policy::file::Sidecar;
+use mpgdrive::policy::{Mode, PolicyNet};
 use std::path::{Path, PathBuf};
 
 /// Configuration, seed and threads of the commands over the internal simulator.
@@ -53,6 +55,25 @@ pub struct PolicyPair {
     /// Single-agent policy: a file or a directory of one per seed.
     #[arg(long, default_value = "policies/sarl")]
     pub sarl_policy: PathBuf,
+}
+
+impl PolicyPair {
+    /// The policy of a mode.
+    pub fn of(&self, mode: Mode) -> &Path {
+        match mode {
+            Mode::Mpg => &self.policy,
+            Mode::Sarl => &self.sarl_policy,
+        }
+    }
+
+    /// Both sets (one policy per seed, MARL then single-agent), checked against `config`'s
+    /// world rules.
+    pub fn load(&self, config: &Config) -> Result<[Vec<(PolicyNet, Sidecar)>; 2]> {
+        Ok([
+            load_policies(self.of(Mode::Mpg), config, Rules::Same)?,
+            load_policies(self.of(Mode::Sarl), config, Rules::Same)?,
+        ])
+    }
 }
 
 /// `println!` that ends the process quietly when stdout is closed (for example `| head`)

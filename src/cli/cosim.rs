@@ -98,15 +98,10 @@ mod with_sumo {
         // Every policy is loaded (and checked against the configuration) before the first run.
         let mut controllers = Vec::new();
         for &kind in &args.controllers {
-            let policy = match kind.mode() {
-                Some(mpgdrive::policy::Mode::Mpg) => Some(&args.policies.policy),
-                Some(mpgdrive::policy::Mode::Sarl) => Some(&args.policies.sarl_policy),
-                None => None,
-            };
-            let net = match policy {
-                Some(p) => Some(pick_policy(p, args.policy_seed, &config)?),
-                None => None,
-            };
+            let net = kind
+                .mode()
+                .map(|mode| pick_policy(args.policies.of(mode), args.policy_seed, &config))
+                .transpose()?;
             controllers.push((kind, net));
         }
         std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;

@@ -5,7 +5,6 @@ use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
-use mpgdrive::eval::study::{Rules, load_policies};
 use mpgdrive::ngsim::config::NgsimConfig;
 use mpgdrive::ngsim::load::load;
 use mpgdrive::ngsim::process::{Prepared, prepare};
@@ -145,8 +144,7 @@ fn eval(args: EvalArgs) -> Result<()> {
     let config = Config::load(&args.config)?;
     // One observation per step: one libtorch thread avoids pool overhead.
     tch::set_num_threads(1);
-    let mut mpg = load_policies(&args.policies.policy, &config, Rules::Same)?;
-    let mut sarl = load_policies(&args.policies.sarl_policy, &config, Rules::Same)?;
+    let [mut mpg, mut sarl] = args.policies.load(&config)?;
     let (ngsim, prepared) = load_prepared(&args.input)?;
     let s = &config.scenario;
     let extraction = extract(&prepared, &ngsim, s.n_leaders, s.n_followers);

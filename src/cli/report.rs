@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
-use mpgdrive::eval::study::{Rules, Study, Surrounding, evaluate, load_policies};
+use mpgdrive::eval::study::{Study, Surrounding, evaluate};
 use mpgdrive::policy::PolicyNet;
 use mpgdrive::policy::file::Sidecar;
 use mpgdrive::render::charts::{Panel, Series, mean_band, panels_png};
@@ -115,8 +115,7 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let config = Config::load(&args.config)?;
     let threads = threads(args.threads)?;
     check_inputs(&args)?;
-    let mpg = load_policies(&args.policies.policy, &config, Rules::Same)?;
-    let sarl = load_policies(&args.policies.sarl_policy, &config, Rules::Same)?;
+    let [mpg, sarl] = args.policies.load(&config)?;
     let figures = args.out.join("figures");
     std::fs::create_dir_all(&figures).with_context(|| format!("creating {}", figures.display()))?;
     let command: Vec<String> = std::env::args().collect();
