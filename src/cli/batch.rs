@@ -1,6 +1,6 @@
 //! `mpgdrive batch`: every (route file, controller, seed) as its own cosim worker.
 
-use crate::cli::common::{pick_policy, print, progress_bar, usage};
+use crate::cli::common::{PolicyPair, pick_policy, print, progress_bar, usage};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, combos, run_batch};
@@ -25,12 +25,8 @@ pub struct BatchArgs {
     /// Controllers, comma-separated: mpg, sarl, sumo.
     #[arg(long, value_delimiter = ',', default_value = "mpg,sarl,sumo")]
     controllers: Vec<String>,
-    /// MARL policy (file or directory of seeds).
-    #[arg(long, default_value = "policies/mpg")]
-    policy: PathBuf,
-    /// Single-agent policy (file or directory of seeds).
-    #[arg(long, default_value = "policies/sarl")]
-    sarl_policy: PathBuf,
+    #[command(flatten)]
+    policies: PolicyPair,
     /// Merge geometry (default: merge.toml beside the .sumocfg).
     #[arg(long)]
     merge: Option<PathBuf>,
@@ -186,13 +182,8 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<()> {
         .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
     let geometry = MergeGeometry::load(&merge)?;
     mpgdrive::sumo::inputs::check_geometry(&geometry, &merge, &files.net)?;
-    for (kind, policy) in [
-        (ControllerKind::Mpg, &args.policy),
-        (ControllerKind::Sarl, &args.sarl_policy),
-    ] {
-        if kinds.contains(&kind) {
-            pick_policy(policy, None, &config)?;
-        }
+    for mode in kinds.iter().filter_map(|k| k.mode()) {
+        pick_policy(args.policies.of(mode), None, &config)?;
     }
     Ok(())
 }
@@ -212,9 +203,9 @@ fn worker_args(args: &BatchArgs) -> Result<Vec<String>> {
         "--sumocfg".into(),
         abs(&args.sumocfg)?,
         "--policy".into(),
-        abs(&args.policy)?,
+        abs(&args.policies.policy)?,
         "--sarl-policy".into(),
-        abs(&args.sarl_policy)?,
+        abs(&args.policies.sarl_policy)?,
         "--end".into(),
         args.end.to_string(),
     ];
