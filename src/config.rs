@@ -50,6 +50,42 @@ pub struct ScenarioConfig {
     pub n_leaders: usize,
     /// Number of target-lane players behind the ego by distance to the conflict point.
     pub n_followers: usize,
+    /// Which world episodes start in: the paper's one ego and its players, or merge traffic
+    /// (`[traffic]`). Default `paper`.
+    #[serde(default)]
+    pub kind: ScenarioKind,
+}
+
+/// The world an episode starts in.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ScenarioKind {
+    /// The paper's: one ramp ego and `n_leaders + n_followers` target-lane players, Table I
+    /// observations (with the one-hot agent index).
+    #[default]
+    Paper,
+    /// Merge traffic: streams on the ramp and the target lane (`[traffic]`), several ramp
+    /// vehicles, a share of IDM drivers; the traffic observation (no agent index).
+    Traffic,
+}
+
+/// Merge traffic (`scenario.kind = "traffic"`): how many vehicles an episode holds and the
+/// ranges its demand and driver mix are drawn from.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct TrafficConfig {
+    /// Ramp vehicles per episode (the ego is one of them).
+    pub ramp_vehicles: usize,
+    /// Target-lane vehicles per episode.
+    pub target_vehicles: usize,
+    /// Range of the target lane's flow (veh/h).
+    pub lane_flow: [f64; 2],
+    /// Range of the ramp's flow (veh/h).
+    pub ramp_flow: [f64; 2],
+    /// Range of the share of human (IDM) drivers among the vehicles other than the ego.
+    pub human_share: [f64; 2],
+    /// Share of the target-lane vehicles placed ahead of the conflict point.
+    pub ahead_share: f64,
 }
 
 /// Vehicle body and kinematic-bicycle parameters (eq. 1).
@@ -279,6 +315,9 @@ pub struct Config {
     pub eval: EvalConfig,
     /// Training.
     pub train: TrainConfig,
+    /// Merge traffic, required when `scenario.kind = "traffic"`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub traffic: Option<TrafficConfig>,
 }
 
 impl Config {
@@ -305,9 +344,13 @@ impl Config {
         c
     }
 
-    /// Total number of players `N` (ego, leaders and followers).
+    /// Total number of vehicles `N` of an episode: the ego, leaders and followers, or the
+    /// traffic's ramp and target-lane vehicles.
     pub fn n_agents(&self) -> usize {
-        1 + self.scenario.n_leaders + self.scenario.n_followers
+        match (&self.scenario.kind, &self.traffic) {
+            (ScenarioKind::Traffic, Some(t)) => t.ramp_vehicles + t.target_vehicles,
+            _ => 1 + self.scenario.n_leaders + self.scenario.n_followers,
+        }
     }
 
     /// Number of simulation steps in an episode, `round(T / dt)`.
@@ -413,6 +456,7 @@ impl Config {
             p.strata[0] >= 1 && p.strata[1] >= 1,
             "both counts must be at least 1".into(),
         )?;
+        self.validate_traffic()?;
         let t = &self.train;
         for (key, n) in [
             ("train.hidden", t.hidden),
@@ -447,6 +491,37 @@ impl Config {
             "must be at least 1".into(),
         )?;
         Ok(())
+    }
+}
+
+impl Config {
+    fn validate_traffic(&self) -> Result<(), ConfigError> {
+        let Some(t) = &self.traffic else {
+            return check(
+                "traffic",
+                self.scenario.kind == ScenarioKind::Paper,
+                "scenario.kind = \"traffic\" needs a [traffic] section".into(),
+            );
+        };
+        check(
+            "traffic.ramp_vehicles",
+            (1..=8).contains(&t.ramp_vehicles),
+            "must lie in [1, 8]".into(),
+        )?;
+        check(
+            "traffic.target_vehicles",
+            (1..=32).contains(&t.target_vehicles),
+            "must lie in [1, 32]".into(),
+        )?;
+        range("traffic.lane_flow", t.lane_flow, 1.0, 4000.0)?;
+        range("traffic.ramp_flow", t.ramp_flow, 1.0, 4000.0)?;
+        range("traffic.human_share", t.human_share, 0.0, 1.0)?;
+        finite("traffic.ahead_share", t.ahead_share)?;
+        check(
+            "traffic.ahead_share",
+            (0.0..=1.0).contains(&t.ahead_share),
+            format!("{} must lie in [0, 1]", t.ahead_share),
+        )
     }
 }
 

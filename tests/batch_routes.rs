@@ -42,6 +42,7 @@ fn demand_scales_shares_and_seeds() {
         scales: vec![1.0, 2.0],
         ramp_share: Some(0.2),
         controllable_shares: vec![0.5],
+        mainline_share: None,
         seeds: vec![0, 1],
         duration: 3600.0,
     };
@@ -89,6 +90,7 @@ fn out_of_range_shares_are_refused() {
         scales: vec![1.0],
         ramp_share: Some(1.5),
         controllable_shares: Vec::new(),
+        mainline_share: None,
         seeds: vec![0],
         duration: 60.0,
     };
@@ -104,6 +106,7 @@ fn a_controllable_share_sweep_keeps_the_arrivals_and_changes_the_types() {
         scales: vec![1.0],
         ramp_share: None,
         controllable_shares: vec![0.0, 1.0],
+        mainline_share: None,
         seeds: vec![3],
         duration: 300.0,
     };
@@ -142,6 +145,7 @@ fn regression_fuzz_a_nan_begin_or_an_absurd_rate_is_refused_not_looped_on() {
         scales: vec![1.0],
         ramp_share: None,
         controllable_shares: Vec::new(),
+        mainline_share: None,
         seeds: vec![0],
         duration: 900.0,
     };
@@ -163,4 +167,48 @@ fn regression_fuzz_a_nan_begin_or_an_absurd_rate_is_refused_not_looped_on() {
         assert!(err.to_string().contains(needle), "{err}");
         assert!(!dir.join("out").exists(), "nothing written");
     }
+}
+
+#[test]
+fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals() {
+    let (base, geometry) = i80();
+    let out = out_dir("mainline");
+    let spec = |share| DemandSpec {
+        scales: vec![1.2],
+        ramp_share: None,
+        controllable_shares: vec![],
+        mainline_share: share,
+        seeds: vec![3],
+        duration: 900.0,
+    };
+    let plain = generate(&base, &geometry, &spec(None), &out).unwrap();
+    let mixed = generate(&base, &geometry, &spec(Some(0.3)), &out).unwrap();
+    assert_eq!(mixed[0].file, "i80_d1.20_m0.30_s3.rou.xml");
+    assert_eq!(mixed[0].mainline_share, Some(0.3));
+    let (a, b) = (vehicles(&out.join(&plain[0].file)), vehicles(&out.join(&mixed[0].file)));
+    assert_eq!(a.len(), b.len());
+    let mut freeway = 0;
+    let mut ctrl = 0;
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!((x.0, &x.2), (y.0, &y.2), "same departures and routes");
+        if y.2 == "freeway" {
+            freeway += 1;
+            assert_eq!(x.1, "human");
+            ctrl += usize::from(y.1 == "ctrl");
+        } else {
+            assert_eq!(x.1, y.1, "ramp types are the base file's");
+        }
+    }
+    // 30% of about 2,230 freeway vehicles (7,440 veh/h x 1.2 over 15 min); 4 standard deviations.
+    let share = ctrl as f64 / freeway as f64;
+    assert!((share - 0.3).abs() < 4.0 * (0.3 * 0.7 / freeway as f64).sqrt(), "{share}");
+    // A file without a controllable vType cannot take a mainline share.
+    let bare = out.join("bare.rou.xml");
+    std::fs::write(
+        &bare,
+        r#"<routes><vType id="human"/><route id="freeway" edges="approach main1"/><flow id="f" type="human" route="freeway" begin="0" end="60" vehsPerHour="600"/></routes>"#,
+    )
+    .unwrap();
+    let err = generate(&bare, &geometry, &spec(Some(0.3)), &out).unwrap_err();
+    assert!(err.to_string().contains("needs a vType of a controllable type (ctrl)"), "{err}");
 }

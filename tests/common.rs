@@ -28,7 +28,7 @@ pub fn car(x: f64, v: f64, ramp: bool) -> Vehicle {
 
 /// A scene from vehicles, ego first.
 pub fn scene(vehicles: Vec<Vehicle>) -> Scene {
-    Scene { vehicles }
+    Scene::new(vehicles)
 }
 
 /// The mpgdrive binary, run from the crate root.
@@ -57,4 +57,9 @@ pub fn real_sample() -> Option<std::path::PathBuf> {
         eprintln!("skipped: {} is not here", path.display());
         None
     }
+}
+
+/// Merge traffic (configs/traffic.toml).
+pub fn traffic() -> Config {
+    Config::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/traffic.toml")).unwrap()
 }

@@ -9,6 +9,7 @@ use common::paper;
 use mpgdrive::engine::rollout::{Recording, RolloutOptions, rollout};
 use mpgdrive::policy::PolicyActor;
 use mpgdrive::policy::file::load;
+use mpgdrive::policy::observation::Layout;
 use mpgdrive::sumo::{Backend, ControlModes, Controller, ControllerKind, MergeGeometry, NewVehicle, Sumo};
 use mpgdrive::world::drivers::Driver;
 use mpgdrive::world::sampler::{Purpose, purpose_seed, sample_scenes};
@@ -38,7 +39,7 @@ fn depart(x: f64, on_ramp: bool, length: f64) -> (&'static str, &'static str, f6
 fn sumo_ego_track(scene: &Scene, steps: usize) -> Vec<f64> {
     let config = paper();
     let geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
-    let (net, _) = load(Path::new(POLICY), config.n_agents()).unwrap();
+    let (net, _) = load(Path::new(POLICY), Layout::of(&config)).unwrap();
     let args: Vec<String> = [
         "sumo",
         "-c",
@@ -119,7 +120,7 @@ fn sumo_ego_track(scene: &Scene, steps: usize) -> Vec<f64> {
 fn internal_ego_track(scene: &Scene, steps: usize) -> Vec<f64> {
     let mut config = paper();
     config.sim.horizon = steps as f64 * config.sim.dt;
-    let (net, _) = load(Path::new(POLICY), config.n_agents()).unwrap();
+    let (net, _) = load(Path::new(POLICY), Layout::of(&config)).unwrap();
     let opts = RolloutOptions {
         recording: Recording::Full,
         threads: 1,

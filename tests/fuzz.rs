@@ -201,6 +201,7 @@ fn fuzz_route_generator_base_file() {
         scales: vec![0.5],
         ramp_share: None,
         controllable_shares: vec![0.5],
+        mainline_share: None,
         seeds: vec![0],
         duration: 30.0,
     };

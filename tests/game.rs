@@ -79,7 +79,7 @@ fn potential_equals_theorem_3_sum() {
     for k in 0..20 {
         let s = sample_scene(&config, 3, k);
         let u: Vec<f64> = (0..s.len()).map(|i| (i as f64 - 4.0) * 0.7).collect();
-        out.compute(&reward, &reward, &s.vehicles, &u);
+        out.compute(&reward, &reward, &s.vehicles, &u, &[]);
         let expected = theorem3_potential(&reward, &s.vehicles, &u);
         assert_abs_diff_eq!(out.potential, expected, epsilon = 1e-9 * expected.abs().max(1.0));
         // sum_i r_i counts each pair twice and each self term once.
@@ -109,7 +109,7 @@ fn logged_terms_recombine_into_the_reward() {
     ]);
     let u = [1.0, -0.5, 0.0];
     let mut out = StepRewards::default();
-    out.compute(&reward, &reward, &s.vehicles, &u);
+    out.compute(&reward, &reward, &s.vehicles, &u, &[]);
     let [ws, wc, wt, wg] = reward.weights;
     for (t, r) in out.terms.iter().zip(&out.reward) {
         assert_abs_diff_eq!(
@@ -212,4 +212,44 @@ fn check_mpg_measures_a_gap_with_projection_and_termination_on() {
         report.max_relative_gap > 1e-9,
         "feasibility couples players' transitions"
     );
+}
+
+#[test]
+fn check_mpg_passes_merge_traffic_in_the_theorem_setting() {
+    // Traffic episodes: 3 ramp vehicles and 10 target-lane vehicles, all players.
+    let mut config = common::traffic();
+    config.sim.horizon = 10.0;
+    let report = check_mpg(&config, &settings(true), &PaperReward::new(&config), &mut || {});
+    assert_eq!(report.players.len(), 13);
+    assert!(report.max_relative_gap < 1e-9, "gap {}", report.max_relative_gap);
+    assert!(report.players.iter().all(|p| p.min_abs_delta_j > 1e-6));
+}
+
+#[test]
+fn humans_are_no_players_of_the_potential() {
+    // Three cars: a ramp player, a target-lane player 20 m ahead and a human 30 m behind it.
+    // phi = the players' own terms + every pair with a player; the human's own terms are out.
+    let config = common::traffic();
+    let reward = PaperReward::new(&config);
+    let mut s = scene(vec![
+        car(150.0, 12.0, true),
+        car(170.0, 14.0, false),
+        car(140.0, 15.0, false),
+    ]);
+    let u = [0.5, -1.0, 2.0];
+    let mut all = StepRewards::default();
+    all.compute(&reward, &reward, &s.vehicles, &u, &[]);
+    s.humans = vec![false, false, true];
+    let mut mixed = StepRewards::default();
+    mixed.compute(&reward, &reward, &s.vehicles, &u, &s.humans);
+    // By hand: the human's own terms are -(15 - 15)^2 - 0.5 * 2^2 = -2 (w_speed 1, w_comfort 0.5).
+    assert!((all.potential - mixed.potential - (-2.0)).abs() < 1e-12);
+    assert_eq!(all.reward, mixed.reward, "rewards do not depend on who is human");
+    // Two humans: their pair leaves the potential too.
+    s.humans = vec![false, true, true];
+    let mut two = StepRewards::default();
+    two.compute(&reward, &reward, &s.vehicles, &u, &s.humans);
+    let r12 = reward.pair(1, 2, &s.vehicles[1], &s.vehicles[2]).reward;
+    let own1 = -(14.0f64 - 15.0).powi(2) - 0.5;
+    assert!((mixed.potential - two.potential - own1 - r12).abs() < 1e-12);
 }

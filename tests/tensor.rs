@@ -204,3 +204,46 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
         assert!((o.potential_return - potential[k]).abs() < tol, "scenario {k}");
     }
 }
+
+#[test]
+fn engines_agree_in_merge_traffic_with_human_drivers() {
+    // Traffic episodes (3 ramp vehicles, 10 in the target lane, IDM humans merging by the
+    // gate) with a speed-keeping linear policy for the players: same returns and potential.
+    use mpgdrive::policy::observation::{Layout, tensor_observations};
+    use mpgdrive::policy::{LinearPolicy, PolicyActor};
+    let config = common::traffic();
+    let scenes = sample_scenes(&config, 3, 0, 16);
+    assert!(scenes.iter().any(|s| s.humans.contains(&true)));
+    let steps = 150;
+    let opts = RolloutOptions {
+        steps,
+        threads: 2,
+        ..RolloutOptions::from_config(&config)
+    };
+    let linear = LinearPolicy::speed_keeping(&config);
+    let scalar = rollout(&config, &opts, &scenes, || {
+        PolicyActor::new(&config, linear.clone(), Driver::Idm, true)
+    });
+    let w = Tensor::from_slice(&linear.weights).to_kind(Kind::Double);
+    let t = tch::no_grad(|| {
+        tensor::rollout(
+            &config,
+            &scenes,
+            &double(steps, true, true, tensor::Learning::All),
+            |b, nb, _| {
+                let obs = tensor_observations(Layout::Traffic, config.scenario.conflict_point, b, nb);
+                (obs.matmul(&w.to_kind(obs.kind())) + f64::from(linear.bias)).tanh() * f64::from(linear.scale)
+            },
+        )
+    });
+    let potential = Vec::<f64>::try_from(t.potential).unwrap();
+    for (k, o) in scalar.iter().enumerate() {
+        let tol = 1e-4 * o.potential_return.abs().max(1.0);
+        assert!(
+            (o.potential_return - potential[k]).abs() < tol,
+            "scenario {k}: {} vs {}",
+            o.potential_return,
+            potential[k]
+        );
+    }
+}

@@ -4,6 +4,7 @@ mod common;
 
 use common::smoke;
 use mpgdrive::policy::file::{self, PolicyError};
+use mpgdrive::policy::observation::Layout;
 use mpgdrive::policy::{NetSpec, PolicyNet};
 use mpgdrive::train::{Mode, TrainRun, curves, train, train_all};
 use std::path::PathBuf;
@@ -67,7 +68,7 @@ fn sarl_training_improves_the_ego_return() {
     let records = train(&config, &run(Mode::Sarl, &dir), &NO_STOP, &mut |_| {}).unwrap();
     let (first, last) = first_last(&records);
     assert!(last > first, "probe ego return {first} -> {last}");
-    let (_, side) = file::load(&dir.join("seed3"), 9).unwrap();
+    let (_, side) = file::load(&dir.join("seed3"), Layout::Table1 { players: 9 }).unwrap();
     assert_eq!(
         (side.mode.as_str(), side.seed, side.epochs),
         ("sarl", 3, config.train.epochs)
@@ -149,7 +150,7 @@ fn resume_runs_only_the_epochs_after_the_checkpoint() {
     let run7 = run(Mode::Mpg, &dir);
     let full = train(&config, &run7, &NO_STOP, &mut |_| {}).unwrap();
     // Emulate a run interrupted after epoch 5: a checkpoint saying epoch 5 next to the curves.
-    let (net, mut side) = file::load(&dir.join("seed3"), 9).unwrap();
+    let (net, mut side) = file::load(&dir.join("seed3"), Layout::Table1 { players: 9 }).unwrap();
     side.epochs = 5;
     file::save(&dir.join("seed3.ckpt"), &net, &side).unwrap();
     let mut epochs_run = Vec::new();
@@ -204,7 +205,7 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
         "{err}"
     );
     assert_eq!(seen, vec![1, 2, 3]);
-    let (_, side) = file::load(&dir.join("seed3.ckpt"), 9).unwrap();
+    let (_, side) = file::load(&dir.join("seed3.ckpt"), Layout::Table1 { players: 9 }).unwrap();
     assert_eq!(side.epochs, 3);
     let resumed = train(
         &config,
@@ -220,7 +221,7 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
 }
 
 fn sample_net() -> PolicyNet {
-    PolicyNet::seeded(NetSpec::new(9, 8, 9.81), 0)
+    PolicyNet::seeded(NetSpec::new(Layout::Table1 { players: 9 }, 8, 9.81), 0)
 }
 
 fn sidecar_for(net: &PolicyNet) -> file::Sidecar {
@@ -243,7 +244,7 @@ fn policy_file_round_trip_gives_the_same_actions() {
     let dir = out_dir("roundtrip");
     let net = sample_net();
     file::save(&dir.join("p"), &net, &sidecar_for(&net)).unwrap();
-    let (back, side) = file::load(&dir.join("p.json"), 9).unwrap();
+    let (back, side) = file::load(&dir.join("p.json"), Layout::Table1 { players: 9 }).unwrap();
     assert_eq!(side, sidecar_for(&net));
     // Fixed inputs (not libtorch's generator, which other tests seed).
     let obs = Tensor::linspace(-20.0, 50.0, 90, (tch::Kind::Float, tch::Device::Cpu)).reshape([5, 18]);
@@ -261,25 +262,44 @@ fn mismatched_truncated_or_corrupted_policy_files_are_refused() {
     let base = dir.join("p");
     file::save(&base, &net, &sidecar_for(&net)).unwrap();
     // Another player count.
-    assert!(matches!(file::load(&base, 5), Err(PolicyError::Mismatch { .. })));
+    assert!(matches!(
+        file::load(&base, Layout::Table1 { players: 5 }),
+        Err(PolicyError::Mismatch { .. })
+    ));
+    // A Table I policy where the traffic layout is read (a traffic configuration).
+    let err = file::load(&base, Layout::Traffic).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("observation layout version 2, the configuration's world"),
+        "{err}"
+    );
     // Another observation layout.
     let mut side = sidecar_for(&net);
     side.obs_layout_version = 99;
     std::fs::write(dir.join("p.json"), serde_json::to_string(&side).unwrap()).unwrap();
-    let err = file::load(&base, 9).unwrap_err();
+    let err = file::load(&base, Layout::Table1 { players: 9 }).unwrap_err();
     assert!(err.to_string().contains("observation layout version 99"), "{err}");
     // Truncated weights.
     file::save(&base, &net, &sidecar_for(&net)).unwrap();
     let weights = std::fs::read(dir.join("p.safetensors")).unwrap();
     std::fs::write(dir.join("p.safetensors"), &weights[..weights.len() / 2]).unwrap();
-    assert!(matches!(file::load(&base, 9), Err(PolicyError::Weights { .. })));
+    assert!(matches!(
+        file::load(&base, Layout::Table1 { players: 9 }),
+        Err(PolicyError::Weights { .. })
+    ));
     // Weights of another network size under a matching sidecar.
-    let other = PolicyNet::new(NetSpec::new(9, 4, 9.81));
+    let other = PolicyNet::new(NetSpec::new(Layout::Table1 { players: 9 }, 4, 9.81));
     other.vs.save(dir.join("p.safetensors")).unwrap();
-    assert!(matches!(file::load(&base, 9), Err(PolicyError::Weights { .. })));
+    assert!(matches!(
+        file::load(&base, Layout::Table1 { players: 9 }),
+        Err(PolicyError::Weights { .. })
+    ));
     // A sidecar that is not JSON.
     std::fs::write(dir.join("p.json"), "{not json").unwrap();
-    assert!(matches!(file::load(&base, 9), Err(PolicyError::Sidecar { .. })));
+    assert!(matches!(
+        file::load(&base, Layout::Table1 { players: 9 }),
+        Err(PolicyError::Sidecar { .. })
+    ));
 }
 
 #[test]

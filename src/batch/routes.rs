@@ -6,7 +6,9 @@
 //! vehicles do not depend on the other flows). Ramp flows (whose route starts on the edge of a
 //! ramp lane of `merge.toml`) can be rescaled to carry a given share of the demand, and a flow
 //! whose type is a `vTypeDistribution` that holds a controllable type draws each vehicle's type
-//! with the given controllable share. Types and routes are copied verbatim from the base file.
+//! with the given controllable share; freeway flows of a plain type can carry a share of the
+//! controllable type too (a penetration rate). Types and routes are copied verbatim from the
+//! base file.
 //! A `manifest.json` lists the files with their parameters.
 
 use crate::atomic;
@@ -26,6 +28,10 @@ pub struct DemandSpec {
     /// Shares of ramp vehicles of a controllable type, one route file each (empty: as in the
     /// base file). Files of one scale and seed share their arrivals; only the types differ.
     pub controllable_shares: Vec<f64>,
+    /// Share of freeway vehicles (flows not from the ramp, of a plain type) made of the
+    /// controllable type, a penetration rate (`None`: none). Arrivals stay those of the file
+    /// without it: the types are drawn from a stream of their own.
+    pub mainline_share: Option<f64>,
     /// One route file per seed and scale.
     pub seeds: Vec<u64>,
     /// Departures up to this time (s), within each flow's begin and end.
@@ -43,6 +49,9 @@ pub struct ManifestEntry {
     pub ramp_share: Option<f64>,
     /// Controllable share used (`None`: the base file's).
     pub controllable_share: Option<f64>,
+    /// Controllable share of the freeway vehicles (`None`: none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mainline_share: Option<f64>,
     /// Seed of the arrivals and type draws.
     pub seed: u64,
     /// Vehicles written.
@@ -185,6 +194,16 @@ fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base,
     })
 }
 
+/// A controllable type the base file defines (as a vType or a member of a distribution).
+fn controllable_type(base: &Base, geometry: &MergeGeometry) -> Option<String> {
+    geometry.controllable_types.iter().find_map(|c| {
+        base.verbatim
+            .iter()
+            .any(|v| v.contains(&format!("id=\"{c}\"")))
+            .then(|| c.clone())
+    })
+}
+
 fn check_share(name: &str, x: Option<f64>) -> Result<(), RoutesError> {
     match x {
         Some(v) if !(0.0..=1.0).contains(&v) => {
@@ -216,6 +235,7 @@ pub fn generate(
     for &share in &spec.controllable_shares {
         check_share("--controllable-share", Some(share))?;
     }
+    check_share("--mainline-controllable-share", spec.mainline_share)?;
     let shares: Vec<Option<f64>> = if spec.controllable_shares.is_empty() {
         vec![None]
     } else {
@@ -238,6 +258,18 @@ pub fn generate(
     };
     let text = std::fs::read_to_string(base_path).map_err(io(base_path))?;
     let base = parse_base(base_path, &text, geometry)?;
+    let mainline_type = match spec.mainline_share {
+        Some(_) => Some(
+            controllable_type(&base, geometry).ok_or_else(|| RoutesError::Base {
+                path: base_path.to_path_buf(),
+                message: format!(
+                    "--mainline-controllable-share needs a vType of a controllable type ({}) in the file",
+                    geometry.controllable_types.join(", ")
+                ),
+            })?,
+        ),
+        None => None,
+    };
     let total: f64 = base.flows.iter().map(|f| f.per_hour).sum();
     let ramp: f64 = base.flows.iter().filter(|f| f.ramp).map(|f| f.per_hour).sum();
     let factor = |f: &Flow| match spec.ramp_share {
@@ -289,6 +321,12 @@ pub fn generate(
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 rng.set_stream(k as u64);
                 let mix = base.mixes.iter().find(|(id, _, _)| *id == flow.vtype);
+                let mut type_rng = ChaCha8Rng::seed_from_u64(seed);
+                type_rng.set_stream((1 << 32) + k as u64);
+                let mainline = mainline_type
+                    .as_ref()
+                    .zip(spec.mainline_share)
+                    .filter(|_| !flow.ramp && mix.is_none());
                 let mut t = flow.begin;
                 let end = flow.end.min(spec.duration);
                 let mut n = 0usize;
@@ -305,7 +343,10 @@ pub fn generate(
                                 other.clone()
                             }
                         }
-                        _ => flow.vtype.clone(),
+                        _ => match mainline {
+                            Some((ctrl, p)) if type_rng.random::<f64>() < p => ctrl.clone(),
+                            _ => flow.vtype.clone(),
+                        },
                     };
                     let extra: String = flow
                         .extra
@@ -329,12 +370,14 @@ pub fn generate(
                 Some(c) if shares.len() > 1 => format!("_c{c:.2}"),
                 _ => String::new(),
             };
-            let file = format!("{stem}_d{scale:.2}{swept}_s{seed}.rou.xml");
+            let mainline = spec.mainline_share.map_or(String::new(), |m| format!("_m{m:.2}"));
+            let file = format!("{stem}_d{scale:.2}{swept}{mainline}_s{seed}.rou.xml");
             let mut xml = format!(
-                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, seed {seed}, {} s -->\n<routes>\n",
+                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, mainline controllable share {:?}, seed {seed}, {} s -->\n<routes>\n",
                 base_path.display(),
                 spec.ramp_share,
                 share,
+                spec.mainline_share,
                 spec.duration
             );
             for v in &base.verbatim {
@@ -352,6 +395,7 @@ pub fn generate(
                 scale,
                 ramp_share: spec.ramp_share,
                 controllable_share: share,
+                mainline_share: spec.mainline_share,
                 seed,
                 vehicles: vehicles.len(),
             });

@@ -34,6 +34,11 @@ pub struct CosimArgs {
     /// Simulated duration (s).
     #[arg(long, default_value_t = 900.0)]
     end: f64,
+    /// The merge gate as a shield for the ramp vehicles the policy drives: true (the default)
+    /// or false (the learned policy alone). A policy is checked against --config as it is;
+    /// the shield is set on top, and the results say which.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    gate: bool,
     /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed towards any leader;
     /// 0: the policy's speed exactly, as the internal simulator).
     #[arg(long, default_value_t = 25)]
@@ -92,7 +97,7 @@ mod with_sumo {
 
     /// Runs `mpgdrive cosim`.
     pub fn run(args: CosimArgs) -> Result<ExitCode> {
-        let (config, settings) = settings(&args)?;
+        let (mut config, settings) = settings(&args)?;
         // The policy runs on small batches every step: one libtorch thread avoids pool overhead.
         tch::set_num_threads(1);
         // Every policy is loaded (and checked against the configuration) before the first run.
@@ -104,16 +109,18 @@ mod with_sumo {
                 .transpose()?;
             controllers.push((kind, net));
         }
+        config.sim.merge_gate = args.gate;
         std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
         let runs = run_all(&config, &settings, controllers, &args.out)?;
         if args.json {
             print(&serde_json::to_string_pretty(&runs)?)?;
         } else {
             print(&format!(
-                "Co-simulation: {} (SUMO seed {}, {} s)\n\n{}",
+                "Co-simulation: {} (SUMO seed {}, {} s, merge gate shield {})\n\n{}",
                 args.sumocfg.display(),
                 args.seed,
                 args.end,
+                if args.gate { "on" } else { "off: the policy alone" },
                 cosim::markdown(&runs)
             ))?;
         }

@@ -27,6 +27,10 @@ pub struct RoutesArgs {
     /// file's); several shares give one file each (`_c<share>` in the name).
     #[arg(long, value_delimiter = ',')]
     controllable_share: Vec<f64>,
+    /// Share of freeway vehicles of the controllable type (a penetration rate: with
+    /// `players = "controllable"` they play the game in `cosim`); default none.
+    #[arg(long)]
+    mainline_controllable_share: Option<f64>,
     /// Seeds of the arrivals, one route file per seed and scale.
     #[arg(long, value_delimiter = ',', default_value = "0")]
     seeds: Vec<u64>,
@@ -80,6 +84,7 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         scales: parse_scales(&args.scales)?,
         ramp_share: args.ramp_share,
         controllable_shares: args.controllable_share,
+        mainline_share: args.mainline_controllable_share,
         seeds: args.seeds,
         duration: args.duration,
     };

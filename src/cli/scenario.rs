@@ -59,7 +59,7 @@ pub fn scenario(
         let n = outcome.final_scene.len();
         let states = &outcome.trajectory.as_ref()?.states;
         let vehicles = states.get((m + 1) * n..(m + 2) * n)?.to_vec();
-        Some(merged_between(&Scene { vehicles }))
+        Some(merged_between(&Scene::new(vehicles)))
     });
     let summary = format!(
         "{title}: {}; ego merged at {}, collision {}, mean speed {:.2} m/s, mean |u| {:.3} m/s^2",

@@ -212,16 +212,21 @@ fn run_chunk(
             }
             let out = &mut outcomes[b];
             for i in 0..n {
+                let human = scene.is_human(i);
+                if human {
+                    raw[b * n + i] = driver_accel(config, Driver::Idm, scene, i, &neighbors[b * n + i]);
+                }
+                let learning = actor.learning(i) && !human;
                 applied[i] = applied_action(
                     &rules,
-                    opts.feasibility && (config.sim.project_non_learning || actor.learning(i)),
+                    opts.feasibility && (config.sim.project_non_learning || learning),
                     scene,
                     i,
                     &neighbors[b * n + i],
                     raw[b * n + i],
                 );
             }
-            rewards.compute(&base, pair, &scene.vehicles, &applied);
+            rewards.compute(&base, pair, &scene.vehicles, &applied, &scene.humans);
             for (ret, r) in out.returns.iter_mut().zip(&rewards.reward) {
                 *ret += discount * r;
             }

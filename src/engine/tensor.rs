@@ -12,7 +12,7 @@ use crate::game::terms;
 use crate::num::Num;
 use crate::world::dynamics::{Kinematics, bicycle_step};
 use crate::world::idm::idm_accel;
-use crate::world::merge_gate::{GateRules, gate_holds, stop_bound};
+use crate::world::merge_gate::{gate_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
@@ -33,6 +33,10 @@ pub struct TensorBatch {
     pub phi: Tensor,
     /// 1.0 on the ramp, 0.0 in the target lane (no gradient).
     pub on_ramp: Tensor,
+    /// 1.0 where a human (IDM) drives the vehicle (merge traffic), else 0.0.
+    pub human: Tensor,
+    /// Each scene's human flags (as [`Scene::humans`]).
+    humans: Vec<Vec<bool>>,
     /// The same states as plain scenes, without gradient: the discrete work (neighbours,
     /// merge gate, collisions) reads them, copied out of the tensors once per step.
     detached: Vec<Scene>,
@@ -56,18 +60,23 @@ impl TensorBatch {
             v: field(|v| v.v),
             phi: field(|v| v.phi),
             on_ramp: field(|v| if v.on_ramp { 1.0 } else { 0.0 }),
+            human: human_mask(scenes, kind),
+            humans: scenes.iter().map(|s| s.humans.clone()).collect(),
             detached: scenes.to_vec(),
         }
     }
 
-    /// A batch of these tensors (the scenes are copied out of them).
-    fn of_tensors(x: Tensor, y: Tensor, v: Tensor, phi: Tensor, on_ramp: Tensor) -> Self {
+    /// The next state of `self`: these tensors, the same drivers (the scenes are copied out
+    /// of them).
+    fn next(&self, x: Tensor, y: Tensor, v: Tensor, phi: Tensor, on_ramp: Tensor) -> Self {
         let mut batch = TensorBatch {
             x,
             y,
             v,
             phi,
             on_ramp,
+            human: self.human.shallow_clone(),
+            humans: self.humans.clone(),
             detached: Vec::new(),
         };
         batch.detached = batch.copy_scenes();
@@ -99,9 +108,22 @@ impl TensorBatch {
                         on_ramp: r[k] > 0.5,
                     })
                     .collect(),
+                humans: self.humans[b].clone(),
             })
             .collect()
     }
+}
+
+/// `[batch, agents]`: 1.0 where a human drives the vehicle.
+fn human_mask(scenes: &[Scene], kind: Kind) -> Tensor {
+    let n = scenes[0].len();
+    let data: Vec<f64> = scenes
+        .iter()
+        .flat_map(|s| (0..n).map(move |i| f64::from(u8::from(s.is_human(i)))))
+        .collect();
+    Tensor::from_slice(&data)
+        .reshape([scenes.len() as i64, n as i64])
+        .to_kind(kind)
 }
 
 /// Neighbour indices as `[batch, agents]` tensors (a missing neighbour points at the player
@@ -217,8 +239,8 @@ pub fn apply_limits(
             rules.tau_s,
         );
         let lane = <Tensor as Num>::select(&batch.on_ramp, raw, &project_feasible(raw, &lo, &hi));
-        if rules.merge_gate {
-            merge_gate(&rules.gate, batch, &lane)
+        if rules.merge_gate || batch.humans.iter().flatten().any(|&h| h) {
+            merge_gate(rules, batch, &lane)
         } else {
             lane
         }
@@ -232,17 +254,23 @@ pub fn apply_limits(
     clip_action(&a, &batch.v, rules.max_accel, rules.v_min, rules.v_max, dt)
 }
 
-/// The merge gate on `a`: ramp players it holds get `min(a, stop bound)`.
-fn merge_gate(rules: &GateRules, batch: &TensorBatch, a: &Tensor) -> Tensor {
+/// The merge gate on `a`: ramp players it holds get `min(a, stop bound)` (every player with
+/// `sim.merge_gate`, else the human drivers only).
+fn merge_gate(rules: &WorldRules, batch: &TensorBatch, a: &Tensor) -> Tensor {
     let closed: Vec<f64> = batch
         .scenes()
         .iter()
-        .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(gate_holds(s, i, rules)))))
+        .flat_map(|s| {
+            (0..s.len()).map(move |i| {
+                let gated = rules.merge_gate || s.is_human(i);
+                f64::from(u8::from(gated && gate_holds(s, i, &rules.gate)))
+            })
+        })
         .collect();
     let closed = Tensor::from_slice(&closed)
         .reshape(batch.x.size())
         .to_kind(batch.x.kind());
-    let bound = stop_bound(&batch.x, &batch.v, rules);
+    let bound = stop_bound(&batch.x, &batch.v, &rules.gate);
     <Tensor as Num>::select(&closed, &Num::min(a, &bound), a)
 }
 
@@ -290,7 +318,16 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Tensor) 
     let gap = terms::conflict_time_gap(&xi, &vi, &xj, &vj, x_c, r.epsilon) * r.w_conflict;
     let pair: Tensor = &same_lane * ttc + (1.0 - &same_lane) * gap;
     let reward = &own + pair.matmul(&pairs.incidence);
-    let potential = own.sum_dim_intlist(1, false, None) + pair.sum_dim_intlist(1, false, None);
+    // Humans are no players: the potential holds the players' own terms and every pair with
+    // at least one player (Theorem 3 over the players; a human's terms are not in any
+    // player's reward).
+    let (hi, hj) = ends(&batch.human);
+    let player = 1.0 - &batch.human;
+    let both_human: Tensor = hi * hj;
+    let own_players: Tensor = own * player;
+    let pairs_with_a_player: Tensor = pair * (1.0 - both_human);
+    let potential =
+        own_players.sum_dim_intlist(1, false, None) + pairs_with_a_player.sum_dim_intlist(1, false, None);
     (reward, potential)
 }
 
@@ -306,7 +343,7 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Tensor) -> TensorBat
     let next = bicycle_step(&k, u, &u.zeros_like(), rules.axles, rules.dt);
     let before_conflict = Num::gt(&next.x.full(rules.conflict_point()), &next.x);
     let on_ramp = &batch.on_ramp * before_conflict;
-    TensorBatch::of_tensors(
+    batch.next(
         next.x,
         on_ramp.mul_c(-rules.road.lane_width),
         next.v,
@@ -366,15 +403,27 @@ pub fn rollout(
     let mut discount = 1.0;
     let pairs = Pairs::new(scenes[0].len(), kind);
     let rules = WorldRules::new(config);
-    // With `sim.project_non_learning` off, the feasibility rules apply to the ego alone when
-    // only the ego learns.
-    let only = (!config.sim.project_non_learning && learning == Learning::Ego).then(|| {
-        let ego = Tensor::zeros([n], (kind, tch::Device::Cpu)).index_fill(0, &Tensor::from(0i64), 1.0);
-        ego.unsqueeze(0).expand([b, n], false)
+    let any_human = scenes.iter().any(|s| s.humans.contains(&true));
+    // With `sim.project_non_learning` off, the feasibility rules apply to the learning players
+    // alone: not to humans, and to the ego alone when only the ego learns.
+    let only = (!config.sim.project_non_learning).then(|| {
+        let learner = 1.0 - &batch.human;
+        match learning {
+            Learning::All => learner,
+            Learning::Ego => {
+                let ego =
+                    Tensor::zeros([n], (kind, tch::Device::Cpu)).index_fill(0, &Tensor::from(0i64), 1.0);
+                learner * ego.unsqueeze(0).expand([b, n], false)
+            }
+        }
     });
     for step in 0..steps {
         let nb = NeighborIndex::of(&batch);
-        let raw = act(&batch, &nb, step);
+        let mut raw = act(&batch, &nb, step);
+        if any_human {
+            let idm = idm_actions(config, &batch, &nb).to_kind(raw.kind());
+            raw = <Tensor as Num>::select(&batch.human.to_kind(raw.kind()), &idm, &raw);
+        }
         let u = apply_limits(&rules, &batch, &nb, &raw, feasibility, only.as_ref());
         let (r, phi) = rewards(config, &pairs, &batch, &u);
         let live = Tensor::from_slice(&alive).to_kind(kind);

@@ -168,14 +168,10 @@ mod tests {
     fn the_in_lane_distance_counts_only_players_in_the_egos_lane() {
         let mut stats = EgoStats::default();
         // On the ramp: a ramp player 20 m behind, a target-lane player 5 m ahead and one lane over.
-        let before = Scene {
-            vehicles: vec![car(100.0, true), car(80.0, true), car(105.0, false)],
-        };
+        let before = Scene::new(vec![car(100.0, true), car(80.0, true), car(105.0, false)]);
         stats.update(&before, 0.0, 0.1);
         // Merged: the target-lane player 8 m ahead shares its lane, the ramp player does not.
-        let after = Scene {
-            vehicles: vec![car(110.0, false), car(109.0, true), car(118.0, false)],
-        };
+        let after = Scene::new(vec![car(110.0, false), car(109.0, true), car(118.0, false)]);
         stats.update(&after, 0.0, 0.1);
         let m = EpisodeMetrics::from_stats(&stats, false, true);
         assert_eq!(m.min_lane_distance, Some(8.0));
@@ -186,9 +182,7 @@ mod tests {
     #[test]
     fn an_episode_without_a_lane_mate_has_no_in_lane_distance_and_is_left_out_of_the_mean() {
         let mut stats = EgoStats::default();
-        let alone = Scene {
-            vehicles: vec![car(100.0, true), car(105.0, false)],
-        };
+        let alone = Scene::new(vec![car(100.0, true), car(105.0, false)]);
         stats.update(&alone, 0.0, 0.1);
         let lonely = EpisodeMetrics::from_stats(&stats, false, false);
         assert_eq!(lonely.min_lane_distance, None);

@@ -18,6 +18,9 @@
 //! from the check's seed. With the feasibility projection or collision termination on, a
 //! player's transition depends on its neighbours and the identity no longer holds exactly: the
 //! check then reports the measured gap as a finding.
+//!
+//! In merge traffic (`scenario.kind = "traffic"`) the check runs on traffic episodes, several
+//! ramp vehicles and both streams, every vehicle a player (humans too: see [`check_mpg`]).
 
 use crate::config::Config;
 use crate::engine::rollout::{Actor, Recording, RolloutOptions, rollout_with_reward};
@@ -187,7 +190,12 @@ pub fn check_mpg(
         opts.terminate_on_collision = false;
     }
     let n = config.n_agents();
-    let scenes = sample_scenes(config, settings.seed, 0, settings.states);
+    let mut scenes = sample_scenes(config, settings.seed, 0, settings.states);
+    // In merge traffic every vehicle is a player here: a human's IDM reacts to its
+    // neighbours, which Theorems 1-3 exclude, so the check draws own-state policies for all.
+    for scene in &mut scenes {
+        scene.humans.clear();
+    }
     // Policies come from a stream of their own, after the scenario streams.
     let mut rng = scenario_rng(settings.seed, u64::MAX);
     let mut players: Vec<PlayerGap> = (0..n)

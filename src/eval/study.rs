@@ -12,6 +12,7 @@ use crate::policy::drive::{Others, policy_rollout};
 use crate::policy::file::{self, PolicyError, Sidecar};
 use crate::policy::mode::Mode;
 use crate::policy::network::PolicyNet;
+use crate::policy::observation::Layout;
 use crate::world::drivers::Driver;
 use crate::world::sampler::{Purpose, purpose_seed, sample_scenes};
 use serde::Serialize;
@@ -80,16 +81,16 @@ pub enum Rules {
 }
 
 /// Loads a policy file, or every policy of a directory (checkpoints excluded), sorted by seed,
-/// for a run of `config` (its player count, and its world rules unless `rules` is
+/// for a run of `config` (its observation layout, and its world rules unless `rules` is
 /// [`Rules::Any`]).
 pub fn load_policies(
     path: &Path,
     config: &Config,
     rules: Rules,
 ) -> Result<Vec<(PolicyNet, Sidecar)>, EvalError> {
-    let n_agents = config.n_agents();
+    let layout = Layout::of(config);
     let load = |p: &Path| -> Result<(PolicyNet, Sidecar), EvalError> {
-        let (net, side) = file::load(p, n_agents)?;
+        let (net, side) = file::load(p, layout)?;
         if rules == Rules::Same {
             file::check_rules(p, &side, config)?;
         }

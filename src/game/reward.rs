@@ -131,19 +131,23 @@ pub struct StepRewards {
 
 impl StepRewards {
     /// Computes `r_i`, the terms and `phi` for vehicles applying `actions`, writing into `self`.
+    /// Vehicles flagged in `humans` (empty: none) are no players: `phi` leaves out their own
+    /// terms and the pairs of two humans.
     pub fn compute(
         &mut self,
         base: &PaperReward,
         pair: &dyn PairReward,
         vehicles: &[Vehicle],
         actions: &[f64],
+        humans: &[bool],
     ) {
+        let human = |i: usize| humans.get(i).copied().unwrap_or(false);
         let n = vehicles.len();
         let [w_speed, w_comfort, _, _] = base.weights;
         self.reward.clear();
         self.terms.clear();
         self.potential = 0.0;
-        for (veh, &u) in vehicles.iter().zip(actions) {
+        for (i, (veh, &u)) in vehicles.iter().zip(actions).enumerate() {
             let (speed, comfort) = base.self_terms(veh, u);
             let r = w_speed * speed + w_comfort * comfort;
             self.reward.push(r);
@@ -153,7 +157,9 @@ impl StepRewards {
                 ttc: 0.0,
                 conflict: 0.0,
             });
-            self.potential += r;
+            if !human(i) {
+                self.potential += r;
+            }
         }
         let symmetric = pair.is_symmetric();
         for i in 0..n {
@@ -170,7 +176,9 @@ impl StepRewards {
                 self.terms[i].conflict += ij.conflict;
                 self.terms[j].ttc += ji.ttc;
                 self.terms[j].conflict += ji.conflict;
-                self.potential += ij.reward; // Theorem 3: pairs j < i, r_ij
+                if !(human(i) && human(j)) {
+                    self.potential += ij.reward; // Theorem 3: pairs j < i, r_ij
+                }
             }
         }
     }

@@ -25,7 +25,7 @@ use crate::ngsim::process::{Prepared, Track};
 use crate::ngsim::scenario::MergeScenario;
 use crate::policy::file::Sidecar;
 use crate::policy::network::PolicyNet;
-use crate::policy::observation::{BatchPolicy, obs_dim, observe};
+use crate::policy::observation::{BatchPolicy, Layout, observe};
 use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
@@ -106,7 +106,7 @@ pub fn replay(
         let mut vehicles = Vec::with_capacity(players.len() + 1);
         vehicles.push(ego);
         vehicles.extend(players.iter().map(|t| recorded(t, frame, ngsim)));
-        Scene { vehicles }
+        Scene::new(vehicles)
     };
     let mut ego = recorded(ego_track, start, ngsim);
     ego.y = rules.road.lane_y(true);
@@ -115,7 +115,8 @@ pub fn replay(
     let mut scenes = vec![scene.clone()];
     let mut stats = EgoStats::default();
     let (mut order, mut nb) = (Vec::new(), Vec::new());
-    let mut obs = vec![0.0f32; obs_dim(config.n_agents())];
+    let layout = Layout::of(config);
+    let mut obs = vec![0.0f32; layout.dim()];
     let mut action = [0.0f32];
     let (mut collision, mut merged, mut done) = (false, false, 0);
     for step in 0..steps {
@@ -126,7 +127,7 @@ pub fn replay(
             }
             EgoDriver::Policy(policy) => {
                 find_neighbors(&scene, &mut order, &mut nb);
-                observe(rules.conflict_point(), &scene, 0, &nb[0], &mut obs);
+                observe(layout, rules.conflict_point(), &scene, 0, &nb[0], &mut obs);
                 policy.act(&obs, 1, &mut action);
                 applied_action(
                     &rules,

@@ -10,7 +10,7 @@ use crate::atomic::with_suffix;
 use crate::config::Config;
 use crate::policy::mode::Mode;
 use crate::policy::network::{NetSpec, PolicyNet};
-use crate::policy::observation::OBS_LAYOUT_VERSION;
+use crate::policy::observation::Layout;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -60,7 +60,7 @@ pub enum PolicyError {
 pub struct Sidecar {
     /// Always [`FORMAT`].
     pub format: String,
-    /// Observation layout version ([`OBS_LAYOUT_VERSION`]).
+    /// Observation layout version ([`Layout::version`]).
     pub obs_layout_version: u32,
     /// Network sizes and scales.
     pub net: NetSpec,
@@ -157,8 +157,8 @@ pub fn save(base: &Path, net: &PolicyNet, sidecar: &Sidecar) -> Result<(), Polic
     Ok(())
 }
 
-/// Reads a policy; `n_agents` is the player count it must serve.
-pub fn load(base: &Path, n_agents: usize) -> Result<(PolicyNet, Sidecar), PolicyError> {
+/// Reads a policy; `layout` is the observation it must read.
+pub fn load(base: &Path, layout: Layout) -> Result<(PolicyNet, Sidecar), PolicyError> {
     let (weights, json) = paths(base);
     let text = std::fs::read_to_string(&json).map_err(io(&json))?;
     let sidecar: Sidecar = serde_json::from_str(&text).map_err(|e| PolicyError::Sidecar {
@@ -175,17 +175,20 @@ pub fn load(base: &Path, n_agents: usize) -> Result<(PolicyNet, Sidecar), Policy
             sidecar.format
         )));
     }
-    if sidecar.obs_layout_version != OBS_LAYOUT_VERSION {
+    if sidecar.obs_layout_version != layout.version() {
         return Err(mismatch(format!(
-            "observation layout version {}, this mpgdrive uses {OBS_LAYOUT_VERSION}",
-            sidecar.obs_layout_version
+            "observation layout version {}, the configuration's world (scenario.kind) reads version {}",
+            sidecar.obs_layout_version,
+            layout.version()
         )));
     }
-    let expected = NetSpec::new(n_agents, sidecar.net.hidden, sidecar.net.action_scale);
+    let expected = NetSpec::new(layout, sidecar.net.hidden, sidecar.net.action_scale);
     if sidecar.net != expected {
         return Err(mismatch(format!(
-            "made for {} players (observation width {}), the configuration has {n_agents}",
-            sidecar.net.n_agents, sidecar.net.obs_dim
+            "made for {} players (observation width {}), the configuration has {}",
+            sidecar.net.n_agents,
+            sidecar.net.obs_dim,
+            layout.one_hot()
         )));
     }
     let mut net = PolicyNet::new(sidecar.net.clone());

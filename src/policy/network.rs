@@ -4,19 +4,22 @@
 //!
 //! Inputs are normalised by fixed scales ([`OBS_SCALE`]), stored with the policy file.
 
-use crate::policy::observation::{BatchPolicy, N_FEATURES};
+use crate::policy::observation::{BatchPolicy, Layout, N_FEATURES};
 use tch::{Device, Kind, Tensor, nn, nn::Module};
 
 /// Scale of each Table I feature (the one-hot index is not scaled): distances by 100 m,
 /// speeds by 30 m/s, relative speeds by 10 m/s, flags by 1.
 pub const OBS_SCALE: [f32; N_FEATURES] = [0.01, 1.0 / 30.0, 0.01, 0.1, 1.0, 0.01, 0.1, 1.0, 1.0];
+/// Scale of the traffic layout's same-lane leader features (distance, relative speed, flag).
+pub const LANE_LEADER_SCALE: [f32; 3] = [0.01, 0.1, 1.0];
 
 /// Sizes and scales of a network, everything needed to rebuild it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NetSpec {
-    /// Number of players `N` (length of the one-hot index).
+    /// Length of the one-hot agent index: the number of players `N` in Table I's layout, 0
+    /// in the traffic layout.
     pub n_agents: usize,
-    /// Observation width, `9 + N`.
+    /// Observation width ([`Layout::dim`]).
     pub obs_dim: usize,
     /// Width of each hidden layer.
     pub hidden: usize,
@@ -27,13 +30,16 @@ pub struct NetSpec {
 }
 
 impl NetSpec {
-    /// The spec for `n_agents` players.
-    pub fn new(n_agents: usize, hidden: usize, action_scale: f64) -> Self {
+    /// The spec of a network reading `layout`.
+    pub fn new(layout: Layout, hidden: usize, action_scale: f64) -> Self {
         let mut obs_scale = OBS_SCALE.to_vec();
-        obs_scale.resize(N_FEATURES + n_agents, 1.0);
+        if layout == Layout::Traffic {
+            obs_scale.extend(LANE_LEADER_SCALE);
+        }
+        obs_scale.resize(layout.dim(), 1.0);
         NetSpec {
-            n_agents,
-            obs_dim: N_FEATURES + n_agents,
+            n_agents: layout.one_hot(),
+            obs_dim: layout.dim(),
             hidden,
             action_scale,
             obs_scale,

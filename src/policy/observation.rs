@@ -20,7 +20,7 @@
 //! what a policy learned (CHANGELOG.md, "Design notes", has the measurements).
 //! Values are raw SI numbers here; the policy network normalises them.
 
-use crate::config::Config;
+use crate::config::{Config, ScenarioKind};
 use crate::engine::rollout::Actor;
 use crate::num::Num;
 use crate::world::drivers::{Driver, driver_accel};
@@ -29,18 +29,81 @@ use crate::world::safety::Neighbor;
 use crate::world::state::Scene;
 use crate::world::step::neighbor_of;
 
-/// Observation layout version, stored with policy files; a file of another version is refused.
-/// Version 2 caps a present neighbour's distance at [`MISSING_DISTANCE`] (version 1 did not).
-/// `observation_of_version_2_is_pinned` fails when the features change: bump this with them.
+/// Observation layout version of Table I, stored with policy files; a file of another version
+/// is refused. Version 2 caps a present neighbour's distance at [`MISSING_DISTANCE`] (version 1
+/// did not). `observation_of_version_2_is_pinned` fails when the features change: bump this
+/// with them.
 pub const OBS_LAYOUT_VERSION: u32 = 2;
+/// Observation layout version of merge traffic ([`Layout::Traffic`]).
+pub const TRAFFIC_LAYOUT_VERSION: u32 = 3;
 /// Number of features before the one-hot agent index.
 pub const N_FEATURES: usize = 9;
+/// Number of features of the traffic layout: Table I's nine and the same-lane leader's three.
+pub const N_TRAFFIC_FEATURES: usize = 12;
 /// Distance reported for a missing neighbour, and the largest reported for a present one (m).
 pub const MISSING_DISTANCE: f64 = 100.0;
 
-/// Observation width for `n_agents` players.
-pub fn obs_dim(n_agents: usize) -> usize {
-    N_FEATURES + n_agents
+/// What a policy observes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Layout {
+    /// Table I: nine features and the one-hot index over `players` players (the paper's
+    /// world, version [`OBS_LAYOUT_VERSION`]).
+    Table1 {
+        /// Number of players `N`.
+        players: usize,
+    },
+    /// Merge traffic (version [`TRAFFIC_LAYOUT_VERSION`]): Table I's nine features, then the
+    /// nearest vehicle ahead in the same lane (distance `x_LL - x`, relative speed, flag; as
+    /// features 2-4, capped the same way). A ramp vehicle sees the ramp vehicle it queues
+    /// behind, a target-lane vehicle the one it follows. No agent index: any number of
+    /// vehicles play, each a player of every ego it meets.
+    Traffic,
+}
+
+impl Layout {
+    /// The layout of a configuration's world (`scenario.kind`).
+    pub fn of(config: &Config) -> Self {
+        match config.scenario.kind {
+            ScenarioKind::Paper => Layout::Table1 {
+                players: config.n_agents(),
+            },
+            ScenarioKind::Traffic => Layout::Traffic,
+        }
+    }
+
+    /// Version stored with policy files.
+    pub fn version(self) -> u32 {
+        match self {
+            Layout::Table1 { .. } => OBS_LAYOUT_VERSION,
+            Layout::Traffic => TRAFFIC_LAYOUT_VERSION,
+        }
+    }
+
+    /// Number of features before the agent index.
+    pub fn features(self) -> usize {
+        match self {
+            Layout::Table1 { .. } => N_FEATURES,
+            Layout::Traffic => N_TRAFFIC_FEATURES,
+        }
+    }
+
+    /// Length of the one-hot agent index.
+    pub fn one_hot(self) -> usize {
+        match self {
+            Layout::Table1 { players } => players,
+            Layout::Traffic => 0,
+        }
+    }
+
+    /// Observation width.
+    pub fn dim(self) -> usize {
+        self.features() + self.one_hot()
+    }
+}
+
+/// Observation width of a configuration's world.
+pub fn obs_dim(config: &Config) -> usize {
+    Layout::of(config).dim()
 }
 
 /// The nine Table I features of a player at `(x, v)`, over any [`Num`].
@@ -54,12 +117,13 @@ pub fn features<T: Num>(
 ) -> [T; N_FEATURES] {
     let missing = x.full(MISSING_DISTANCE);
     let zero = x.full(0.0);
+    let [ld, lv, lp] = ahead_features(x, v, leader);
     [
         x.mul_c(-1.0).add_c(x_c),
         v.mul_c(1.0),
-        T::select(&leader.present, &leader.x.sub(x).min(&missing), &missing),
-        T::select(&leader.present, &leader.v.sub(v), &zero),
-        leader.present.mul_c(1.0),
+        ld,
+        lv,
+        lp,
         T::select(&follower.present, &x.sub(&follower.x).min(&missing), &missing),
         T::select(&follower.present, &follower.v.sub(v), &zero),
         follower.present.mul_c(1.0),
@@ -67,15 +131,33 @@ pub fn features<T: Num>(
     ]
 }
 
-/// Writes the observation of player `i` of `scene` into `out` (length [`obs_dim`]).
-pub fn observe(x_c: f64, scene: &Scene, i: usize, nb: &Neighbors, out: &mut [f32]) {
-    observe_as(x_c, scene, i, i, nb, out);
+/// Distance (capped at [`MISSING_DISTANCE`]), relative speed and flag of a neighbour ahead.
+pub fn ahead_features<T: Num>(x: &T, v: &T, ahead: &Neighbor<T>) -> [T; 3] {
+    let missing = x.full(MISSING_DISTANCE);
+    [
+        T::select(&ahead.present, &ahead.x.sub(x).min(&missing), &missing),
+        T::select(&ahead.present, &ahead.v.sub(v), &x.full(0.0)),
+        ahead.present.mul_c(1.0),
+    ]
+}
+
+/// Writes the observation of player `i` of `scene` into `out` (length [`Layout::dim`]).
+pub fn observe(layout: Layout, x_c: f64, scene: &Scene, i: usize, nb: &Neighbors, out: &mut [f32]) {
+    observe_as(layout, x_c, scene, i, i, nb, out);
 }
 
 /// As [`observe`], with the one-hot agent index `agent` instead of `i`: for scenes that hold
 /// fewer than `N` players (SUMO traffic, naturalistic data), where vehicle `i` of the scene
-/// plays the role of player `agent`.
-pub fn observe_as(x_c: f64, scene: &Scene, i: usize, agent: usize, nb: &Neighbors, out: &mut [f32]) {
+/// plays the role of player `agent` (the traffic layout has no index).
+pub fn observe_as(
+    layout: Layout,
+    x_c: f64,
+    scene: &Scene,
+    i: usize,
+    agent: usize,
+    nb: &Neighbors,
+    out: &mut [f32],
+) {
     let me = &scene.vehicles[i];
     let f = features(
         x_c,
@@ -88,7 +170,14 @@ pub fn observe_as(x_c: f64, scene: &Scene, i: usize, agent: usize, nb: &Neighbor
     for (o, v) in out.iter_mut().zip(f) {
         *o = v as f32;
     }
-    for (k, o) in out[N_FEATURES..].iter_mut().enumerate() {
+    if layout == Layout::Traffic {
+        let lane = ahead_features(&me.x, &me.v, &neighbor_of(scene, nb.lane_leader, me));
+        for (o, v) in out[N_FEATURES..].iter_mut().zip(lane) {
+            *o = v as f32;
+        }
+    }
+    let features = layout.features();
+    for (k, o) in out[features..].iter_mut().enumerate() {
         *o = if k == agent { 1.0 } else { 0.0 };
     }
 }
@@ -116,7 +205,7 @@ impl LinearPolicy {
     /// `u = g tanh(0.1 (v_d - v) + 0.05 (d_L - 20) + 0.2 dv_L)` (d_L capped by the missing
     /// distance).
     pub fn speed_keeping(config: &Config) -> Self {
-        let mut weights = vec![0.0; obs_dim(config.n_agents())];
+        let mut weights = vec![0.0; obs_dim(config)];
         weights[1] = -0.1;
         weights[2] = 0.05;
         weights[3] = 0.2;
@@ -187,7 +276,8 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
 
     fn act(&mut self, _step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]) {
         let n = self.config.n_agents();
-        let dim = obs_dim(n);
+        let layout = Layout::of(&self.config);
+        let dim = layout.dim();
         let per_scene = if self.all_players { n } else { 1 };
         let rows = scenes.len() * per_scene;
         self.obs.resize(rows * dim, 0.0);
@@ -197,6 +287,7 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
             for i in 0..per_scene {
                 let row = b * per_scene + i;
                 observe(
+                    layout,
                     x_c,
                     scene,
                     i,
@@ -212,6 +303,7 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
         }
         for (b, scene) in scenes.iter().enumerate() {
             for i in 0..n {
+                // A human's raw action is replaced by the rollout (IDM).
                 out[b * n + i] = if i > 0 && self.others_policy.is_some() {
                     f64::from(self.act_others[b * per_scene + i])
                 } else if i < per_scene {
@@ -227,24 +319,39 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
 /// Observations of every player of a tensor batch, `[batch, agents, obs_dim]`, from the same
 /// [`features`] as [`observe`] (differentiable in the states).
 pub fn tensor_observations(
+    layout: Layout,
     x_c: f64,
     batch: &crate::engine::tensor::TensorBatch,
     nb: &crate::engine::tensor::NeighborIndex,
 ) -> tch::Tensor {
     use crate::engine::tensor::Which;
-    let f = features(
+    let mut f: Vec<tch::Tensor> = features(
         x_c,
         &batch.x,
         &batch.v,
         &batch.on_ramp,
         &nb.get(batch, Which::Leader),
         &nb.get(batch, Which::Follower),
-    );
-    let size = batch.x.size();
-    let one_hot = tch::Tensor::eye(size[1], (batch.x.kind(), batch.x.device()))
-        .unsqueeze(0)
-        .expand([size[0], size[1], size[1]], false);
-    tch::Tensor::cat(&[tch::Tensor::stack(&f, 2), one_hot], 2)
+    )
+    .into();
+    match layout {
+        Layout::Table1 { .. } => {
+            let features = tch::Tensor::stack(&f, 2);
+            let size = batch.x.size();
+            let one_hot = tch::Tensor::eye(size[1], (batch.x.kind(), batch.x.device()))
+                .unsqueeze(0)
+                .expand([size[0], size[1], size[1]], false);
+            tch::Tensor::cat(&[features, one_hot], 2)
+        }
+        Layout::Traffic => {
+            f.extend(ahead_features(
+                &batch.x,
+                &batch.v,
+                &nb.get(batch, Which::LaneLeader),
+            ));
+            tch::Tensor::stack(&f, 2)
+        }
+    }
 }
 
 #[cfg(test)]
@@ -257,13 +364,14 @@ mod tests {
 
     /// Every vehicle's observation of a scene of three (x_c = 180 m).
     fn observations(vehicles: Vec<Vehicle>) -> Vec<Vec<f32>> {
-        let scene = Scene { vehicles };
+        let scene = Scene::new(vehicles);
         let (mut order, mut nb) = (Vec::new(), Vec::new());
         find_neighbors(&scene, &mut order, &mut nb);
         (0..scene.len())
             .map(|i| {
-                let mut out = vec![0.0f32; obs_dim(3)];
-                observe(180.0, &scene, i, &nb[i], &mut out);
+                let layout = Layout::Table1 { players: 3 };
+                let mut out = vec![0.0f32; layout.dim()];
+                observe(layout, 180.0, &scene, i, &nb[i], &mut out);
                 out
             })
             .collect()
@@ -296,6 +404,37 @@ mod tests {
             crate::policy::network::OBS_SCALE,
             [0.01, 1.0 / 30.0, 0.01, 0.1, 1.0, 0.01, 0.1, 1.0, 1.0]
         );
+    }
+
+    #[test]
+    fn traffic_observation_of_version_3_is_pinned() {
+        // A queue on the ramp (ego at 150 m behind a ramp car at 165 m) beside a target-lane
+        // car at 160 m: the nearest leader is the target-lane car, the same-lane leader the
+        // ramp car. No agent index. A change here changes what a traffic policy sees: bump
+        // TRAFFIC_LAYOUT_VERSION and update this test.
+        assert_eq!((TRAFFIC_LAYOUT_VERSION, N_TRAFFIC_FEATURES), (3, 12));
+        let scene = Scene::new(vec![
+            car(150.0, 10.0, true),
+            car(165.0, 8.0, true),
+            car(160.0, 13.0, false),
+        ]);
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&scene, &mut order, &mut nb);
+        let layout = Layout::Traffic;
+        let mut rows = vec![vec![0.0f32; layout.dim()]; 3];
+        for (i, row) in rows.iter_mut().enumerate() {
+            observe(layout, 180.0, &scene, i, &nb[i], row);
+        }
+        let expected: [[f32; 12]; 3] = [
+            [30.0, 10.0, 10.0, 3.0, 1.0, 100.0, 0.0, 0.0, 1.0, 15.0, -2.0, 1.0],
+            // the ramp car: no leader at all, the target-lane car 5 m behind.
+            [15.0, 8.0, 100.0, 0.0, 0.0, 5.0, 5.0, 1.0, 1.0, 100.0, 0.0, 0.0],
+            // the target-lane car: the ramp car 5 m ahead (any lane), none in its lane.
+            [20.0, 13.0, 5.0, -5.0, 1.0, 10.0, -3.0, 1.0, 0.0, 100.0, 0.0, 0.0],
+        ];
+        for (row, e) in rows.iter().zip(expected) {
+            assert_eq!(row.as_slice(), e.as_slice());
+        }
     }
 
     #[test]

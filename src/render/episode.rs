@@ -16,12 +16,7 @@ pub fn scenes_of(outcome: &EpisodeOutcome) -> Vec<Scene> {
     outcome
         .trajectory
         .as_ref()
-        .map(|t| {
-            t.states
-                .chunks(n)
-                .map(|c| Scene { vehicles: c.to_vec() })
-                .collect()
-        })
+        .map(|t| t.states.chunks(n).map(|c| Scene::new(c.to_vec())).collect())
         .unwrap_or_default()
 }
 

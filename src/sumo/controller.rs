@@ -52,7 +52,7 @@
 use crate::config::Config;
 use crate::engine::outcome::EgoStats;
 use crate::policy::network::PolicyNet;
-use crate::policy::observation::{BatchPolicy, obs_dim, observe_as};
+use crate::policy::observation::{BatchPolicy, Layout, observe_as};
 use crate::render::timespace::{Road, Sample, TimeSpace};
 use crate::sumo::geometry::{MergeGeometry, PlayerControl};
 use crate::sumo::kind::ControllerKind;
@@ -196,6 +196,9 @@ pub struct Controller {
     applied: HashMap<String, f64>,
     /// Vehicles asked last step to change to the target lane.
     lane_change_requested: HashSet<String>,
+    /// The policy reads the traffic layout: an ego's game is every vehicle around it, formed
+    /// anew each step (no fixed players, no agent index).
+    traffic: bool,
     timing: ControllerTiming,
     order: Vec<usize>,
     /// The time-space record, when asked for.
@@ -224,6 +227,7 @@ impl Controller {
     ) -> Self {
         let config = config.at_conflict_point(geometry.conflict_point);
         let rules = WorldRules::new(&config);
+        let traffic = Layout::of(&config) == Layout::Traffic;
         Controller {
             config,
             rules,
@@ -242,6 +246,7 @@ impl Controller {
             commanded: HashMap::new(),
             applied: HashMap::new(),
             lane_change_requested: HashSet::new(),
+            traffic,
             timing: ControllerTiming::default(),
             order: Vec::new(),
             timespace: None,
@@ -488,10 +493,15 @@ impl Controller {
                 }
             }
             let mut members = vec![(k, 0)];
-            members.extend(self.players[&c.id].iter().filter_map(|(id, slot)| {
-                let &j = index.get(id.as_str())?;
-                (!cars[j].on_ramp).then_some((j, *slot))
-            }));
+            if self.traffic {
+                // Merge traffic: every vehicle around the ego is in its game, now.
+                members.extend((0..cars.len()).filter(|&j| j != k).map(|j| (j, 0)));
+            } else {
+                members.extend(self.players[&c.id].iter().filter_map(|(id, slot)| {
+                    let &j = index.get(id.as_str())?;
+                    (!cars[j].on_ramp).then_some((j, *slot))
+                }));
+            }
             games.push(Game { members });
         }
         games.sort_by(|a, b| cars[b.members[0].0].x.total_cmp(&cars[a.members[0].0].x));
@@ -506,7 +516,11 @@ impl Controller {
         if !c.on_ramp || c.x < self.geometry.control_from || !self.is_controllable(sumo, &c.id)? {
             return Ok(false);
         }
-        let players = self.nearest_players(cars, k);
+        let players = if self.traffic {
+            Vec::new()
+        } else {
+            self.nearest_players(cars, k)
+        };
         if self.geometry.players == PlayerControl::Controllable {
             for (id, _) in &players {
                 self.is_controllable(sumo, id)?;
@@ -559,8 +573,8 @@ impl Controller {
     /// the policy drives this step (each vehicle in one game at most: the first, downstream
     /// ego's game claims it).
     fn decide(&mut self, cars: &[Car], games: &[Game]) -> Vec<(usize, f64)> {
-        let n_agents = self.config.n_agents();
-        let dim = obs_dim(n_agents);
+        let layout = Layout::of(&self.config);
+        let dim = layout.dim();
         let x_c = self.rules.conflict_point();
         let lane_width = self.config.scenario.lane_width;
         let mut rows: Vec<(usize, usize, usize)> = Vec::new(); // (game, member, car)
@@ -569,13 +583,12 @@ impl Controller {
         let mut claimed = HashSet::new();
         let mut neighbors = Vec::new();
         for (gi, game) in games.iter().enumerate() {
-            let scene = Scene {
-                vehicles: game
-                    .members
+            let scene = Scene::new(
+                game.members
                     .iter()
                     .map(|&(j, _)| cars[j].vehicle(lane_width))
                     .collect(),
-            };
+            );
             let mut nb = Vec::new();
             find_neighbors(&scene, &mut self.order, &mut nb);
             let ego_car = &cars[game.members[0].0];
@@ -589,7 +602,7 @@ impl Controller {
                     if drive && claimed.insert(j) {
                         let start = obs.len();
                         obs.resize(start + dim, 0.0);
-                        observe_as(x_c, &scene, m, slot, &nb[m], &mut obs[start..]);
+                        observe_as(layout, x_c, &scene, m, slot, &nb[m], &mut obs[start..]);
                         rows.push((gi, m, j));
                     }
                 }
@@ -635,9 +648,13 @@ impl Controller {
     /// `i80_merge`, merged egos became players of later egos, and the trained policy, driving
     /// them as leaders far downstream of a waiting ego (never seen in training), stopped one
     /// on an open road.
+    /// With a traffic policy a player is driven inside the control zone only, either way: its
+    /// game is the traffic around it, which training placed there.
     fn may_drive_player(&self, car: &Car) -> bool {
         let g = &self.geometry;
+        let in_zone = car.x >= g.control_from && car.x < self.rules.conflict_point() + g.release_after;
         match g.players {
+            PlayerControl::All if self.traffic => in_zone,
             PlayerControl::All => true,
             PlayerControl::Controllable => {
                 car.x < self.rules.conflict_point() + g.release_after
@@ -657,12 +674,12 @@ impl Controller {
 
 /// Ramp vehicle `j` (first) and every target-lane vehicle, as the merge gate sees them.
 fn ego_and_target_lane(cars: &[Car], j: usize, lane_width: f64) -> Scene {
-    Scene {
-        vehicles: std::iter::once(&cars[j])
+    Scene::new(
+        std::iter::once(&cars[j])
             .chain(cars.iter().filter(|c| !c.on_ramp))
             .map(|c| c.vehicle(lane_width))
             .collect(),
-    }
+    )
 }
 
 /// One ego's game: `(index into cars, player slot)`, the ego first with slot 0.
@@ -794,7 +811,7 @@ mod tests {
     /// A policy whose every action is +g (all weights 0, output bias large).
     fn full_throttle(config: &Config) -> PolicyNet {
         let net = PolicyNet::new(crate::policy::network::NetSpec::new(
-            config.n_agents(),
+            Layout::of(config),
             config.train.hidden,
             config.vehicle.max_accel,
         ));

@@ -23,7 +23,7 @@ use crate::policy::file::{self, PolicyError, Sidecar};
 pub use crate::policy::mode::Mode;
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::{BatchPolicy, PolicyActor};
-use crate::policy::observation::{OBS_LAYOUT_VERSION, obs_dim, observe, tensor_observations};
+use crate::policy::observation::{Layout, observe, tensor_observations};
 use crate::world::drivers::Driver;
 use crate::world::neighbors::find_neighbors;
 use crate::world::sampler::{Purpose, purpose_seed, sample_scenes};
@@ -122,7 +122,8 @@ fn tensor_actions(
     batch: &tensor::TensorBatch,
     nb: &tensor::NeighborIndex,
 ) -> Tensor {
-    let obs = tensor_observations(config.scenario.conflict_point, batch, nb).to_kind(Kind::Float);
+    let obs = tensor_observations(Layout::of(config), config.scenario.conflict_point, batch, nb)
+        .to_kind(Kind::Float);
     let (b, n, d) = (obs.size()[0], obs.size()[1], obs.size()[2]);
     let members = net.members() as i64;
     match mode {
@@ -143,7 +144,8 @@ fn tensor_actions(
 /// action-difference curve): `[members, scenes * players]`.
 fn probe_actions(config: &Config, net: &mut StackedNet, probe: &[Scene]) -> Tensor {
     let n = config.n_agents();
-    let dim = obs_dim(n);
+    let layout = Layout::of(config);
+    let dim = layout.dim();
     let mut obs = vec![0f32; probe.len() * n * dim];
     let (mut order, mut nb) = (Vec::new(), Vec::new());
     for (b, scene) in probe.iter().enumerate() {
@@ -151,6 +153,7 @@ fn probe_actions(config: &Config, net: &mut StackedNet, probe: &[Scene]) -> Tens
         for (i, neighbors) in nb.iter().enumerate() {
             let row = b * n + i;
             observe(
+                layout,
                 config.scenario.conflict_point,
                 scene,
                 i,
@@ -180,7 +183,7 @@ fn sidecar(
 ) -> Sidecar {
     Sidecar {
         format: file::FORMAT.to_string(),
-        obs_layout_version: OBS_LAYOUT_VERSION,
+        obs_layout_version: Layout::of(config).version(),
         net: net.spec.clone(),
         mode: run.mode,
         seed: run.seed,
@@ -388,7 +391,7 @@ pub struct InitScreening {
 /// candidates of all runs trained side by side.
 fn screen_inits(config: &Config, mode: Mode, seeds: &[u64]) -> Result<Vec<InitScreening>, TrainError> {
     let t = &config.train;
-    let spec = NetSpec::new(config.n_agents(), t.hidden, config.vehicle.max_accel);
+    let spec = NetSpec::new(Layout::of(config), t.hidden, config.vehicle.max_accel);
     let members: Vec<(PolicyNet, u64)> = seeds
         .iter()
         .flat_map(|&seed| (0..t.init_candidates).map(move |c| (seed, c)))
@@ -453,13 +456,12 @@ fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
 /// Where `run` starts: its checkpoint with `--resume`, else a fresh network (not yet screened).
 fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
     let t = &config.train;
-    let n = config.n_agents();
     if let Some(dir) = run.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(io_error(dir))?;
     }
     let ckpt = checkpoint_path(&run.out);
     if run.resume && file::paths(&ckpt).1.exists() {
-        let (net, side) = file::load(&ckpt, n)?;
+        let (net, side) = file::load(&ckpt, Layout::of(config))?;
         if side.mode != run.mode || side.seed != run.seed || side.config != *config {
             return Err(TrainError::ForeignCheckpoint {
                 path: ckpt,
@@ -481,7 +483,7 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
     }
     Ok(Start {
         net: PolicyNet::seeded(
-            NetSpec::new(n, t.hidden, config.vehicle.max_accel),
+            NetSpec::new(Layout::of(config), t.hidden, config.vehicle.max_accel),
             run.seed as i64,
         ),
         records: Vec::new(),
@@ -570,7 +572,7 @@ pub fn train_all(
             let seeds: Vec<u64> = fresh.iter().map(|&r| runs[r].seed).collect();
             for (&r, screening) in fresh.iter().zip(screen_inits(config, mode, &seeds)?) {
                 starts[r].net = PolicyNet::seeded(
-                    NetSpec::new(config.n_agents(), t.hidden, config.vehicle.max_accel),
+                    NetSpec::new(Layout::of(config), t.hidden, config.vehicle.max_accel),
                     init_seed(runs[r].seed, screening.chosen),
                 );
                 starts[r].screening = Some(screening);

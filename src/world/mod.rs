@@ -1,6 +1,7 @@
 //! The forced-merge world: geometry, vehicle state, kinematic-bicycle dynamics (eq. 1), the TTC
 //! feasibility projection and the merge gate, collisions, the world's rules as one value, the
-//! initial-state sampler, the paper's specific scenarios and the non-learning drivers.
+//! initial-state samplers (the paper's and merge traffic), the paper's specific scenarios and the
+//! non-learning drivers.
 
 pub mod drivers;
 pub mod dynamics;
@@ -14,6 +15,7 @@ pub mod sampler;
 pub mod scenarios;
 pub mod state;
 pub mod step;
+pub mod traffic;
 
 pub use drivers::Driver;
 pub use rules::WorldRules;

@@ -19,9 +19,10 @@
 //!
 //! Both ranges are never empty, so no sample is rejected.
 
-use crate::config::Config;
+use crate::config::{Config, ScenarioKind};
 use crate::world::geometry::Road;
 use crate::world::state::{Scene, Vehicle};
+use crate::world::traffic::sample_traffic_scene;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -68,8 +69,12 @@ pub fn sample_scenes(config: &Config, seed: u64, first: usize, count: usize) -> 
         .collect()
 }
 
-/// Draws scenario `index` of `seed`.
+/// Draws scenario `index` of `seed`: the paper's, or merge traffic
+/// ([`crate::world::traffic`]) when the configuration says so.
 pub fn sample_scene(config: &Config, seed: u64, index: usize) -> Scene {
+    if let (ScenarioKind::Traffic, Some(t)) = (config.scenario.kind, &config.traffic) {
+        return sample_traffic_scene(config, t, seed, index);
+    }
     let p = &config.sampling;
     let road = Road::new(config);
     let mut rng = scenario_rng(seed, index as u64);
@@ -119,5 +124,5 @@ pub fn sample_scene(config: &Config, seed: u64, index: usize) -> Scene {
     });
     vehicles.extend(leaders.into_iter().rev()); // "1" is the front-most leader
     vehicles.extend(followers);
-    Scene { vehicles }
+    Scene::new(vehicles)
 }

@@ -73,7 +73,7 @@ impl Preset {
         vehicles.extend(
             (0..config.scenario.n_followers).map(|k| target(ego_x - behind - k as f64 * headway, v_follow)),
         );
-        Scene { vehicles }
+        Scene::new(vehicles)
     }
 }
 
@@ -114,20 +114,16 @@ mod tests {
     fn the_ego_merged_between_its_nearest_target_lane_players() {
         // Players 1-2 ahead (2 nearer), 3-4 behind (3 nearer); a ramp car right behind is no
         // target-lane player.
-        let scene = Scene {
-            vehicles: vec![
-                car(181.0, false),
-                car(230.0, false),
-                car(190.0, false),
-                car(170.0, false),
-                car(150.0, false),
-                car(178.0, true),
-            ],
-        };
+        let scene = Scene::new(vec![
+            car(181.0, false),
+            car(230.0, false),
+            car(190.0, false),
+            car(170.0, false),
+            car(150.0, false),
+            car(178.0, true),
+        ]);
         assert_eq!(merged_between(&scene), [2, 3]);
-        let alone = Scene {
-            vehicles: vec![car(181.0, false), car(150.0, false)],
-        };
+        let alone = Scene::new(vec![car(181.0, false), car(150.0, false)]);
         assert_eq!(merged_between(&alone), [0, 1]);
     }
 }

@@ -24,9 +24,25 @@ pub struct Vehicle {
 pub struct Scene {
     /// Vehicles, indexed by player number (0 = ego).
     pub vehicles: Vec<Vehicle>,
+    /// Which vehicles a human (IDM) drives in merge traffic, by index: not players of the
+    /// game, whatever drives the others. Empty: none.
+    pub humans: Vec<bool>,
 }
 
 impl Scene {
+    /// A scene of these vehicles, none of them human.
+    pub fn new(vehicles: Vec<Vehicle>) -> Self {
+        Scene {
+            vehicles,
+            humans: Vec::new(),
+        }
+    }
+
+    /// Whether a human (IDM) drives vehicle `i`.
+    pub fn is_human(&self, i: usize) -> bool {
+        self.humans.get(i).copied().unwrap_or(false)
+    }
+
     /// Number of players.
     pub fn len(&self) -> usize {
         self.vehicles.len()

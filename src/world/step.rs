@@ -54,7 +54,8 @@ pub fn advance(v: &Vehicle, u: f64, rules: &WorldRules) -> Vehicle {
 
 /// The acceleration player `i` of `scene` applies for the raw action `raw`: when `feasibility`
 /// is on, projected onto its feasible interval in the target lane, or held by the merge gate
-/// on the ramp (`sim.merge_gate`, [`crate::world::merge_gate`]); then clipped to
+/// on the ramp (`sim.merge_gate`, [`crate::world::merge_gate`]; a human driver of merge
+/// traffic always merges by the gate, its lane-change rule); then clipped to
 /// `[-g, g]` and the speed bounds (Section V-ii). One function for the internal simulator and
 /// the SUMO co-simulation.
 pub fn applied_action(
@@ -74,7 +75,7 @@ pub fn applied_action(
         let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, rules.clearance(), dt, rules.tau_s);
         a = project_feasible(&a, &lo, &hi);
     }
-    if feasibility && rules.merge_gate && gate_holds(scene, i, &rules.gate) {
+    if feasibility && (rules.merge_gate || scene.is_human(i)) && gate_holds(scene, i, &rules.gate) {
         a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
     }
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)

@@ -1,0 +1,224 @@
+//! Initial states of merge traffic (`scenario.kind = "traffic"`, `[traffic]`).
+//!
+//! Scenario `k` of a seed is drawn from its own random stream, as the paper's are
+//! ([`crate::world::sampler`]). It holds `ramp_vehicles` ramp vehicles and `target_vehicles`
+//! target-lane vehicles:
+//! 1. the demand: the target lane's flow `q_l` and the ramp's `q_r` uniform in their ranges
+//!    (veh/h), each stream's speed uniform in `sampling.speed` (target lane) and
+//!    `sampling.ego_speed` (ramp), and the share of human drivers uniform in `human_share`;
+//! 2. the ego (vehicle 0) on the ramp, stratified in position and speed as the paper's ego is;
+//! 3. the other ramp vehicles as a stream through the ego: a uniform number of them ahead of
+//!    it (those that would reach `x_c - 2 m` go behind instead), the rest behind;
+//! 4. the target lane as a stream through the conflict point: `ahead_share` of its vehicles
+//!    from a point up to one headway past `x_c` onwards, the rest behind it.
+//!
+//! Headways (centre to centre) are `h_min + Exp(s - h_min)`, with `h_min =
+//! sampling.headway[0]` and `s = 3600 v / q` the stream's mean spacing (at least `h_min +
+//! 1 m`): a stream of flow `q` at speed `v` with random arrivals. A vehicle's speed is its
+//! stream's plus a uniform part of +-2 m/s, within `sampling.speed` widened to hold the
+//! stream speed, and held so that the TTC to the vehicle ahead of it in its lane is at least
+//! `sampling.min_ttc` (as the paper's sampler does). Every vehicle but the ego is a human (IDM)
+//! driver with the drawn share's probability.
+
+use crate::config::{Config, TrafficConfig};
+use crate::world::geometry::Road;
+use crate::world::sampler::{scenario_rng, stratum};
+use crate::world::state::{Scene, Vehicle};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+/// Largest deviation of a vehicle's speed from its stream's (m/s).
+const SPEED_SPREAD: f64 = 2.0;
+/// How far before `x_c` a ramp vehicle may start (m).
+const RAMP_END_MARGIN: f64 = 2.0;
+
+fn uniform(rng: &mut ChaCha8Rng, range: [f64; 2]) -> f64 {
+    range[0] + (range[1] - range[0]) * rng.random::<f64>()
+}
+
+/// A stream: its speed and mean spacing.
+struct Stream {
+    speed: f64,
+    spacing: f64,
+}
+
+impl Stream {
+    fn new(rng: &mut ChaCha8Rng, flow: [f64; 2], speed: [f64; 2], h_min: f64) -> Self {
+        let q = uniform(rng, flow);
+        let v = uniform(rng, speed);
+        Stream {
+            speed: v,
+            spacing: (3600.0 * v / q).max(h_min + 1.0),
+        }
+    }
+
+    fn headway(&self, rng: &mut ChaCha8Rng, h_min: f64) -> f64 {
+        let u: f64 = rng.random();
+        h_min - (1.0 - u).ln() * (self.spacing - h_min)
+    }
+
+    /// A speed for a vehicle `h` behind one at `v_ahead` (none: the front of its lane).
+    fn speed(&self, rng: &mut ChaCha8Rng, config: &Config, ahead: Option<(f64, f64)>) -> f64 {
+        let p = &config.sampling;
+        let lo = p.speed[0].min(self.speed);
+        let hi = p.speed[1].max(self.speed);
+        let v = uniform(rng, [self.speed - SPEED_SPREAD, self.speed + SPEED_SPREAD]).clamp(lo, hi);
+        match ahead {
+            Some((v_ahead, h)) => v.min(v_ahead + h / p.min_ttc),
+            None => v,
+        }
+    }
+}
+
+/// Draws traffic scenario `index` of `seed` (module docs).
+pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64, index: usize) -> Scene {
+    let p = &config.sampling;
+    let road = Road::new(config);
+    let x_c = config.scenario.conflict_point;
+    let h_min = p.headway[0];
+    let mut rng = scenario_rng(seed, index as u64);
+    let lane = Stream::new(&mut rng, traffic.lane_flow, p.speed, h_min);
+    let ramp = Stream::new(&mut rng, traffic.ramp_flow, p.ego_speed, h_min);
+    let human_share = uniform(&mut rng, traffic.human_share);
+    let car = |x: f64, v: f64, on_ramp: bool| Vehicle {
+        x,
+        y: road.lane_y(on_ramp),
+        v,
+        phi: 0.0,
+        on_ramp,
+    };
+
+    // The ego, stratified as the paper's.
+    let (cp, cv) = stratum(config, index);
+    let cell = |range: [f64; 2], parts: usize, at: usize, u: f64| {
+        let w = (range[1] - range[0]) / parts as f64;
+        range[0] + w * (at as f64 + u)
+    };
+    let ego_x = cell(p.ego_position, p.strata[0], cp, rng.random::<f64>());
+    let ego_v = cell(p.ego_speed, p.strata[1], cv, rng.random::<f64>());
+    let mut vehicles = vec![car(ego_x, ego_v, true)];
+
+    // The ramp stream: some ahead of the ego (front-most last), the rest behind.
+    let others = traffic.ramp_vehicles - 1;
+    let mut ahead_wanted = rng.random_range(0..=others);
+    let (mut x, mut v) = (ego_x, ego_v);
+    let mut ramp_ahead = Vec::new();
+    while ahead_wanted > 0 {
+        let h = ramp.headway(&mut rng, h_min);
+        if x + h >= x_c - RAMP_END_MARGIN {
+            break;
+        }
+        // Ahead of a vehicle at v: the vehicle behind must not close in faster than h / min_ttc.
+        let v_ahead = ramp.speed(&mut rng, config, None).max(v - h / p.min_ttc);
+        x += h;
+        v = v_ahead;
+        ramp_ahead.push(car(x, v, true));
+        ahead_wanted -= 1;
+    }
+    let (mut x, mut v) = (ego_x, ego_v);
+    for _ in ramp_ahead.len()..others {
+        let h = ramp.headway(&mut rng, h_min);
+        v = ramp.speed(&mut rng, config, Some((v, h)));
+        x -= h;
+        vehicles.push(car(x, v, true));
+    }
+    vehicles.extend(ramp_ahead);
+
+    // The target-lane stream through the conflict point, front-most first.
+    let n_ahead = (traffic.ahead_share * traffic.target_vehicles as f64).round() as usize;
+    let anchor = x_c + rng.random::<f64>() * lane.headway(&mut rng, h_min);
+    let mut front = anchor;
+    for _ in 1..n_ahead {
+        front += lane.headway(&mut rng, h_min);
+    }
+    let (mut x, mut ahead) = (front, None);
+    for k in 0..traffic.target_vehicles {
+        if k > 0 {
+            let h = lane.headway(&mut rng, h_min);
+            x -= h;
+            ahead = ahead.map(|(v, _)| (v, h));
+        }
+        let v = lane.speed(&mut rng, config, ahead);
+        vehicles.push(car(x, v, false));
+        ahead = Some((v, 0.0));
+    }
+    let humans = (0..vehicles.len())
+        .map(|i| i > 0 && rng.random::<f64>() < human_share)
+        .collect();
+    Scene { vehicles, humans }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::ScenarioKind;
+
+    fn traffic_config() -> Config {
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/traffic.toml")).unwrap();
+        let config = Config::parse(&text, "traffic.toml").unwrap();
+        assert_eq!(config.scenario.kind, ScenarioKind::Traffic);
+        config
+    }
+
+    #[test]
+    fn traffic_scenes_hold_both_streams_in_order_with_safe_headways() {
+        let config = traffic_config();
+        let t = config.traffic.clone().unwrap();
+        let x_c = config.scenario.conflict_point;
+        let mut ramp_leaders = 0;
+        let mut human_count = 0;
+        for k in 0..200 {
+            let s = sample_traffic_scene(&config, &t, 7, k);
+            assert_eq!(s.len(), t.ramp_vehicles + t.target_vehicles);
+            assert!(!s.is_human(0), "the ego is never human");
+            human_count += s.humans.iter().filter(|&&h| h).count();
+            let ramp: Vec<&Vehicle> = s.vehicles.iter().filter(|v| v.on_ramp).collect();
+            assert_eq!(ramp.len(), t.ramp_vehicles);
+            assert!(ramp.iter().all(|v| v.x < x_c - RAMP_END_MARGIN + 1e-9));
+            ramp_leaders += usize::from(ramp.iter().any(|v| v.x > s.ego().x));
+            for lane in [true, false] {
+                let mut xs: Vec<(f64, f64)> = s
+                    .vehicles
+                    .iter()
+                    .filter(|v| v.on_ramp == lane)
+                    .map(|v| (v.x, v.v))
+                    .collect();
+                xs.sort_by(|a, b| b.0.total_cmp(&a.0));
+                for w in xs.windows(2) {
+                    let (h, closing) = (w[0].0 - w[1].0, w[1].1 - w[0].1);
+                    assert!(h >= config.sampling.headway[0] - 1e-9, "headway {h}");
+                    assert!(closing <= h / config.sampling.min_ttc + 1e-9, "TTC below min");
+                }
+            }
+        }
+        // Some egos start behind another ramp vehicle, and humans are mixed in.
+        assert!(ramp_leaders > 40, "{ramp_leaders}");
+        assert!(human_count > 100, "{human_count}");
+    }
+
+    #[test]
+    fn denser_demand_packs_the_target_lane_closer() {
+        let mut config = traffic_config();
+        let mut mean_spacing = |flow: f64| {
+            let t = TrafficConfig {
+                lane_flow: [flow, flow],
+                ..config.traffic.clone().unwrap()
+            };
+            config.sampling.speed = [12.0, 12.0];
+            let n = t.target_vehicles as f64;
+            (0..200)
+                .map(|k| {
+                    let s = sample_traffic_scene(&config, &t, 1, k);
+                    let xs: Vec<f64> = s.vehicles.iter().filter(|v| !v.on_ramp).map(|v| v.x).collect();
+                    (xs[0] - xs[xs.len() - 1]) / (n - 1.0)
+                })
+                .sum::<f64>()
+                / 200.0
+        };
+        // 12 m/s at 1,240 veh/h: 34.8 m apart on average; at 620 veh/h, 69.7 m.
+        let (dense, sparse) = (mean_spacing(1240.0), mean_spacing(620.0));
+        assert!((dense - 34.8).abs() < 3.0, "{dense}");
+        assert!((sparse - 69.7).abs() < 6.0, "{sparse}");
+    }
+}
