@@ -185,7 +185,10 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
     let mixed = generate(&base, &geometry, &spec(Some(0.3)), &out).unwrap();
     assert_eq!(mixed[0].file, "i80_d1.20_m0.30_s3.rou.xml");
     assert_eq!(mixed[0].mainline_share, Some(0.3));
-    let (a, b) = (vehicles(&out.join(&plain[0].file)), vehicles(&out.join(&mixed[0].file)));
+    let (a, b) = (
+        vehicles(&out.join(&plain[0].file)),
+        vehicles(&out.join(&mixed[0].file)),
+    );
     assert_eq!(a.len(), b.len());
     let mut freeway = 0;
     let mut ctrl = 0;
@@ -201,7 +204,10 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
     }
     // 30% of about 2,230 freeway vehicles (7,440 veh/h x 1.2 over 15 min); 4 standard deviations.
     let share = ctrl as f64 / freeway as f64;
-    assert!((share - 0.3).abs() < 4.0 * (0.3 * 0.7 / freeway as f64).sqrt(), "{share}");
+    assert!(
+        (share - 0.3).abs() < 4.0 * (0.3 * 0.7 / freeway as f64).sqrt(),
+        "{share}"
+    );
     // A file without a controllable vType cannot take a mainline share.
     let bare = out.join("bare.rou.xml");
     std::fs::write(
@@ -210,5 +216,9 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
     )
     .unwrap();
     let err = generate(&bare, &geometry, &spec(Some(0.3)), &out).unwrap_err();
-    assert!(err.to_string().contains("needs a vType of a controllable type (ctrl)"), "{err}");
+    assert!(
+        err.to_string()
+            .contains("needs a vType of a controllable type (ctrl)"),
+        "{err}"
+    );
 }

@@ -4,6 +4,8 @@ use crate::cli::common::{PolicyPair, pick_policy, print, progress_bar, usage};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, combos, run_batch};
+use mpgdrive::config::Config;
+use mpgdrive::policy::Mode;
 use mpgdrive::sumo::{ControllerKind, MergeGeometry};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -36,6 +38,10 @@ pub struct BatchArgs {
     /// Simulated duration of each run (s).
     #[arg(long, default_value_t = 900.0)]
     end: f64,
+    /// The merge gate as a shield in every run (`cosim --gate`): true or false (the learned
+    /// policy alone).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    gate: bool,
     /// Worker processes at a time (default: the number of cores).
     #[arg(long)]
     jobs: Option<usize>,
@@ -58,7 +64,7 @@ pub fn run(args: BatchArgs) -> Result<ExitCode> {
     let kinds = parse_controllers(&args.controllers)?;
     let shard = parse_shard(args.shard.as_deref())?;
     let routes = find_routes(&args.routes)?;
-    check_inputs(&args, &kinds)?;
+    let config = check_inputs(&args, &kinds)?;
     let routes = routes.iter().map(|r| absolute(r)).collect::<Result<Vec<_>>>()?;
     let todo = combos(&routes, &args.controllers, &args.seeds, shard);
     let jobs = match args.jobs {
@@ -68,7 +74,7 @@ pub fn run(args: BatchArgs) -> Result<ExitCode> {
     };
     let settings = BatchSettings {
         exe: std::env::current_exe().context("locating the mpgdrive binary")?,
-        common_args: worker_args(&args)?,
+        common_args: worker_args(&args, &config)?,
         out: args.out.clone(),
         jobs,
         resume: args.resume,
@@ -161,14 +167,14 @@ fn find_routes(pattern: &str) -> Result<Vec<PathBuf>> {
 
 /// What every worker would refuse is refused here, before any run: the SUMO configuration, the
 /// configuration, the duration, the geometry against its network, the policies.
-fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<()> {
+fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<Config> {
     if !args.sumocfg.is_file() {
         return Err(usage(format!(
             "--sumocfg {}: no such file",
             args.sumocfg.display()
         )));
     }
-    let config = mpgdrive::config::Config::load(&args.config)?;
+    let config = Config::load(&args.config)?;
     if !(args.end.is_finite() && args.end > 0.0) {
         return Err(usage(format!(
             "--end {}: must be a positive number of seconds",
@@ -183,9 +189,9 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<()> {
     let geometry = MergeGeometry::load(&merge)?;
     mpgdrive::sumo::inputs::check_geometry(&geometry, &merge, &files.net)?;
     for mode in kinds.iter().filter_map(|k| k.mode()) {
-        pick_policy(args.policies.of(mode), None, &config)?;
+        pick_policy(&args.policies.of(mode, &config), None, &config)?;
     }
-    Ok(())
+    Ok(config)
 }
 
 /// `path` made absolute (the workers run in their own directories).
@@ -194,7 +200,7 @@ fn absolute(path: &Path) -> Result<PathBuf> {
 }
 
 /// The `mpgdrive cosim` arguments every worker shares (absolute paths).
-fn worker_args(args: &BatchArgs) -> Result<Vec<String>> {
+fn worker_args(args: &BatchArgs, config: &Config) -> Result<Vec<String>> {
     let abs = |p: &Path| -> Result<String> { Ok(absolute(p)?.display().to_string()) };
     let mut common = vec![
         "cosim".to_string(),
@@ -203,11 +209,13 @@ fn worker_args(args: &BatchArgs) -> Result<Vec<String>> {
         "--sumocfg".into(),
         abs(&args.sumocfg)?,
         "--policy".into(),
-        abs(&args.policies.policy)?,
+        abs(&args.policies.of(Mode::Mpg, config))?,
         "--sarl-policy".into(),
-        abs(&args.policies.sarl_policy)?,
+        abs(&args.policies.of(Mode::Sarl, config))?,
         "--end".into(),
         args.end.to_string(),
+        "--gate".into(),
+        args.gate.to_string(),
     ];
     if let Some(m) = &args.merge {
         common.extend(["--merge".into(), abs(m)?]);

@@ -3,7 +3,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use mpgdrive::config::Config;
+use mpgdrive::config::{Config, ScenarioKind};
 use mpgdrive::eval::study::{Rules, load_policies};
 use mpgdrive::policy::file::Sidecar;
 use mpgdrive::policy::{Mode, PolicyNet};
@@ -49,30 +49,46 @@ impl Common {
 /// The two trained policies a comparison needs.
 #[derive(Args)]
 pub struct PolicyPair {
-    /// MARL policy: a file or a directory of one per seed.
-    #[arg(long, default_value = "policies/mpg")]
-    pub policy: PathBuf,
-    /// Single-agent policy: a file or a directory of one per seed.
-    #[arg(long, default_value = "policies/sarl")]
-    pub sarl_policy: PathBuf,
+    /// MARL policy: a file or a directory of one per seed (default: the shipped set of the
+    /// configuration's world, policies/mpg or policies/traffic/mpg).
+    #[arg(long)]
+    pub policy: Option<PathBuf>,
+    /// Single-agent policy: a file or a directory of one per seed (default: policies/sarl or
+    /// policies/traffic/sarl).
+    #[arg(long)]
+    pub sarl_policy: Option<PathBuf>,
 }
 
 impl PolicyPair {
-    /// The policy of a mode.
-    pub fn of(&self, mode: Mode) -> &Path {
-        match mode {
+    /// The policy of a mode: as given, else the shipped set of `config`'s world.
+    pub fn of(&self, mode: Mode, config: &Config) -> PathBuf {
+        let given = match mode {
             Mode::Mpg => &self.policy,
             Mode::Sarl => &self.sarl_policy,
-        }
+        };
+        given.clone().unwrap_or_else(|| shipped_policies(mode, config))
     }
 
     /// Both sets (one policy per seed, MARL then single-agent), checked against `config`'s
     /// world rules.
     pub fn load(&self, config: &Config) -> Result<[Vec<(PolicyNet, Sidecar)>; 2]> {
         Ok([
-            load_policies(self.of(Mode::Mpg), config, Rules::Same)?,
-            load_policies(self.of(Mode::Sarl), config, Rules::Same)?,
+            load_policies(&self.of(Mode::Mpg, config), config, Rules::Same)?,
+            load_policies(&self.of(Mode::Sarl, config), config, Rules::Same)?,
         ])
+    }
+}
+
+/// The shipped policies of a mode for `config`'s world: `policies/<mode>` for the paper's,
+/// `policies/traffic/<mode>` for merge traffic.
+pub fn shipped_policies(mode: Mode, config: &Config) -> PathBuf {
+    let name = match mode {
+        Mode::Mpg => "mpg",
+        Mode::Sarl => "sarl",
+    };
+    match config.scenario.kind {
+        ScenarioKind::Paper => Path::new("policies").join(name),
+        ScenarioKind::Traffic => Path::new("policies/traffic").join(name),
     }
 }
 

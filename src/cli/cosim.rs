@@ -105,7 +105,7 @@ mod with_sumo {
         for &kind in &args.controllers {
             let net = kind
                 .mode()
-                .map(|mode| pick_policy(args.policies.of(mode), args.policy_seed, &config))
+                .map(|mode| pick_policy(&args.policies.of(mode, &config), args.policy_seed, &config))
                 .transpose()?;
             controllers.push((kind, net));
         }

@@ -7,8 +7,8 @@ use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
 use mpgdrive::eval::study::{Study, Surrounding, evaluate};
-use mpgdrive::policy::PolicyNet;
 use mpgdrive::policy::file::Sidecar;
+use mpgdrive::policy::{Mode, PolicyNet};
 use mpgdrive::render::charts::{Panel, Series, mean_band, panels_png};
 use mpgdrive::report::{Block, Document};
 use mpgdrive::train::curves::{self, EpochRecord};
@@ -114,7 +114,8 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let config = Config::load(&args.config)?;
     let threads = threads(args.threads)?;
-    check_inputs(&args)?;
+    let policies = [Mode::Mpg, Mode::Sarl].map(|m| args.policies.of(m, &config));
+    check_inputs(&args, &policies)?;
     let [mpg, sarl] = args.policies.load(&config)?;
     let figures = args.out.join("figures");
     std::fs::create_dir_all(&figures).with_context(|| format!("creating {}", figures.display()))?;
@@ -124,6 +125,7 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
         config: &config,
         cfg: args.config.display().to_string(),
         figures,
+        policies,
     };
     let mut doc = Document::default();
     let title = "mpgdrive report";
@@ -132,9 +134,9 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
         "mpgdrive {}; configuration `{}`; MARL policies `{}` (seeds {:?}), single-agent policies `{}` (seeds {:?}). Made by `{}`.",
         mpgdrive::VERSION,
         ctx.cfg,
-        args.policies.policy.display(),
+        ctx.policies[0].display(),
         seeds(&mpg),
-        args.policies.sarl_policy.display(),
+        ctx.policies[1].display(),
         seeds(&sarl),
         command.join(" ")
     )));
@@ -177,6 +179,8 @@ struct Sections<'a> {
     cfg: String,
     /// Where the figures go.
     figures: PathBuf,
+    /// The MARL and single-agent policy directories.
+    policies: [PathBuf; 2],
 }
 
 /// Loaded policies with their sidecars.
@@ -188,8 +192,8 @@ fn seeds(policies: &Policies) -> Vec<u64> {
 
 /// Everything the report reads is checked before any work: the policy directories, the
 /// results folders.
-fn check_inputs(args: &ReportArgs) -> Result<()> {
-    for dir in [&args.policies.policy, &args.policies.sarl_policy] {
+fn check_inputs(args: &ReportArgs, policies: &[PathBuf; 2]) -> Result<()> {
+    for dir in policies {
         if !dir.is_dir() {
             return Err(usage(format!(
                 "{}: the report needs a directory of one policy per seed (with their curves)",
@@ -221,9 +225,9 @@ fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Stud
     }
     doc.push(Block::Code(format!(
         "{exe} eval --config {cfg} --policy {}\n{exe} eval --config {cfg} --policy {} --ne-policy {}",
-        args.policies.policy.display(),
-        args.policies.sarl_policy.display(),
-        args.policies.policy.display()
+        ctx.policies[0].display(),
+        ctx.policies[1].display(),
+        ctx.policies[0].display()
     )));
     doc.push(Block::Heading(3, "The paper's claims".into()));
     let claims = mpgdrive::eval::claims::markdown(&mpgdrive::eval::claims::check(marl, single));
@@ -243,7 +247,7 @@ fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<()> {
         let (files, summary) = scenario(
             ctx.config,
             preset,
-            &args.policies.policy,
+            &ctx.policies[0],
             args.policy_seed,
             &ctx.figures,
         )?;
@@ -265,7 +269,7 @@ fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<()> {
         doc.push(Block::Code(format!(
             "{exe} scenario --config {cfg} --preset {} --policy {}{}",
             preset.number(),
-            args.policies.policy.display(),
+            ctx.policies[0].display(),
             args.policy_seed
                 .map_or(String::new(), |s| format!(" --policy-seed {s}"))
         )));
@@ -281,10 +285,10 @@ fn training_section(
     (mpg, sarl): (&Policies, &Policies),
     (marl, single): (&Study, &Study),
 ) -> Result<()> {
-    let (args, exe, cfg, figures) = (ctx.args, EXE, &ctx.cfg, &ctx.figures);
+    let (exe, cfg, figures) = (EXE, &ctx.cfg, &ctx.figures);
     doc.push(Block::Heading(2, "Training".into()));
-    let mpg_curves = curves_of(&args.policies.policy, &seeds(mpg))?;
-    let sarl_curves = curves_of(&args.policies.sarl_policy, &seeds(sarl))?;
+    let mpg_curves = curves_of(&ctx.policies[0], &seeds(mpg))?;
+    let sarl_curves = curves_of(&ctx.policies[1], &seeds(sarl))?;
     let over_seeds = "MARL, mean and 1 std over seeds";
     figure(
         doc,

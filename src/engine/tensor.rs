@@ -186,23 +186,14 @@ impl NeighborIndex {
     }
 }
 
-fn select_neighbor(mask: &Tensor, a: &Neighbor<Tensor>, b: &Neighbor<Tensor>) -> Neighbor<Tensor> {
-    Neighbor {
-        x: <Tensor as Num>::select(mask, &a.x, &b.x),
-        v: <Tensor as Num>::select(mask, &a.v, &b.v),
-        present: <Tensor as Num>::select(mask, &a.present, &b.present),
-    }
-}
-
-/// IDM accelerations of every player (behind the same-lane leader, or on the ramp behind the
-/// nearest leader).
+/// IDM accelerations of every player (behind the same-lane leader; on the ramp also behind
+/// the nearest leader, whichever asks for less, as [`crate::world::drivers::driver_accel`]).
 pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> Tensor {
-    let leader = select_neighbor(
-        &batch.on_ramp,
-        &nb.get(batch, Which::Leader),
-        &nb.get(batch, Which::LaneLeader),
-    );
-    idm_accel(&batch.x, &batch.v, &leader, config.vehicle.length, &config.idm)
+    let behind =
+        |leader: &Neighbor<Tensor>| idm_accel(&batch.x, &batch.v, leader, config.vehicle.length, &config.idm);
+    let lane = behind(&nb.get(batch, Which::LaneLeader));
+    let nearest = behind(&nb.get(batch, Which::Leader));
+    <Tensor as Num>::select(&batch.on_ramp, &Num::min(&lane, &nearest), &lane)
 }
 
 /// Which players a policy drives in a tensor rollout.

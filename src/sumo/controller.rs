@@ -316,9 +316,12 @@ impl Controller {
                     sumo.set_color(&c.id, if ego { EGO_COLOUR } else { PLAYER_COLOUR })?;
                 }
             }
-            // SUMO's next speed is the model's current one (module docs: one-step lag).
-            sumo.set_speed(&c.id, c.v)?;
-            self.commanded.insert(c.id.clone(), c.v);
+            // SUMO's next speed is the model's current one (module docs: one-step lag). A
+            // vehicle braked to a stop can land a rounding error below zero (v + (-v / dt) dt),
+            // and a negative speed tells SUMO to drive the vehicle itself again.
+            let v = c.v.max(0.0);
+            sumo.set_speed(&c.id, v)?;
+            self.commanded.insert(c.id.clone(), v);
             applied.insert(c.id.clone(), accel);
             if let Some(lane) = c
                 .ramp_lane

@@ -3,22 +3,18 @@
 use crate::config::Config;
 use crate::world::idm::idm_accel;
 use crate::world::neighbors::Neighbors;
-use crate::world::state::{Scene, Vehicle};
+use crate::world::state::Scene;
 use crate::world::step::neighbor_of;
 
 /// A non-learning driver.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Driver {
-    /// Intelligent Driver Model: behind the same-lane leader, or on the ramp behind the nearest
-    /// leader by distance to the conflict point.
+    /// Intelligent Driver Model: behind the same-lane leader; on the ramp also behind the
+    /// nearest leader by distance to the conflict point (the vehicle it will merge behind),
+    /// whichever asks for less acceleration.
     Idm,
     /// Zero acceleration.
     ConstSpeed,
-}
-
-/// The leader a driver follows: same lane, or on the ramp the nearest by distance to `x_c`.
-pub fn driving_leader(vehicle: &Vehicle, n: &Neighbors) -> Option<usize> {
-    if vehicle.on_ramp { n.leader } else { n.lane_leader }
 }
 
 /// Acceleration of a non-learning driver.
@@ -27,8 +23,18 @@ pub fn driver_accel(config: &Config, driver: Driver, scene: &Scene, i: usize, n:
         Driver::ConstSpeed => 0.0,
         Driver::Idm => {
             let me = &scene.vehicles[i];
-            let leader = neighbor_of(scene, driving_leader(me, n), me);
-            idm_accel(&me.x, &me.v, &leader, config.vehicle.length, &config.idm)
+            let behind = |leader: Option<usize>| {
+                let leader = neighbor_of(scene, leader, me);
+                idm_accel(&me.x, &me.v, &leader, config.vehicle.length, &config.idm)
+            };
+            let lane = behind(n.lane_leader);
+            // IDM behind a missing leader is the free-road acceleration, the largest: alone on
+            // the ramp (the paper's ego) only the nearest leader counts.
+            if me.on_ramp {
+                lane.min(behind(n.leader))
+            } else {
+                lane
+            }
         }
     }
 }
