@@ -261,3 +261,27 @@ fn projected_platoon_keeps_the_safety_gap_instead_of_touching() {
         "without the safety gap the platoon closes up: {bare_gap}"
     );
 }
+
+#[test]
+fn a_ramp_queue_keeps_its_ttc_as_the_target_lane_does() {
+    // A ramp car at 100 m and 15 m/s behind a ramp car at 115 m and 5 m/s, a target-lane car
+    // beside. One step on (eq. 1 moves x with the current speed) the bumper gap less the 2 m
+    // safety gap is (115.5 - 101.5) - 7 = 7 m, so TTC >= 3 s needs v' <= 5 + 7 / 3: the bound is
+    // (7.333 - 15) / 0.1 = -76.7 m/s^2, clipped to -g. Alone on the ramp it would apply +g.
+    let mut config = smoke();
+    config.sim.merge_gate = false;
+    let rules = mpgdrive::world::WorldRules::new(&config);
+    let queue = scene(vec![
+        car(100.0, 15.0, true),
+        car(115.0, 5.0, true),
+        car(100.0, 12.0, false),
+    ]);
+    let (mut order, mut nb) = (Vec::new(), Vec::new());
+    mpgdrive::world::neighbors::find_neighbors(&queue, &mut order, &mut nb);
+    let a = mpgdrive::world::step::applied_action(&rules, true, &queue, 0, &nb[0], 9.81);
+    assert_abs_diff_eq!(a, -9.81, epsilon = 1e-12);
+    let alone = scene(vec![car(100.0, 15.0, true), car(100.0, 12.0, false)]);
+    mpgdrive::world::neighbors::find_neighbors(&alone, &mut order, &mut nb);
+    let a = mpgdrive::world::step::applied_action(&rules, true, &alone, 0, &nb[0], 9.81);
+    assert_abs_diff_eq!(a, 9.81, epsilon = 1e-12);
+}

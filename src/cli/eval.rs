@@ -1,9 +1,14 @@
-//! `mpgdrive eval`: the statistical study (Tables II and III).
+//! `mpgdrive eval`: the statistical study (Tables II and III), or with a merge-traffic
+//! configuration the traffic study.
 
-use crate::cli::common::{Common, outln};
+use crate::cli::common::{Common, outln, usage};
 use anyhow::{Context, Result};
 use clap::Args;
+use mpgdrive::config::{Config, ScenarioKind};
 use mpgdrive::eval::study::{Rules, Surrounding, evaluate, load_policies};
+use mpgdrive::eval::traffic_study::traffic_study;
+use mpgdrive::policy::PolicyNet;
+use mpgdrive::policy::file::Sidecar;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -51,6 +56,9 @@ pub fn run(args: EvalArgs) -> Result<ExitCode> {
         None => Vec::new(),
     };
     let start = Instant::now();
+    if config.scenario.kind == ScenarioKind::Traffic {
+        return traffic(&args, config, &policies, common.threads, start);
+    }
     let study = evaluate(config, &policies, &ne_policies, &args.surrounding, common.threads)?;
     let wall = start.elapsed().as_secs_f64();
     if let Some(path) = args.episodes {
@@ -69,6 +77,38 @@ pub fn run(args: EvalArgs) -> Result<ExitCode> {
             policies.len(),
             args.surrounding.len(),
             config.eval.test_scenarios
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The traffic study (a merge-traffic configuration): every controlled vehicle, human-only and
+/// mixed surroundings.
+fn traffic(
+    args: &EvalArgs,
+    config: &Config,
+    policies: &[(PolicyNet, Sidecar)],
+    threads: usize,
+    start: Instant,
+) -> Result<ExitCode> {
+    if args.episodes.is_some() || args.ne_policy.is_some() {
+        return Err(usage(
+            "--episodes and --ne-policy are for the paper's study, not merge traffic",
+        ));
+    }
+    let study = traffic_study(config, policies, threads)?;
+    if args.json {
+        outln!(
+            "{}",
+            serde_json::to_string_pretty(&study).context("serialising the study")?
+        );
+    } else {
+        outln!("{}", study.markdown());
+        outln!(
+            "({} policies x 2 kinds x {} scenarios in {:.2} s)",
+            policies.len(),
+            config.eval.test_scenarios,
+            start.elapsed().as_secs_f64()
         );
     }
     Ok(ExitCode::SUCCESS)

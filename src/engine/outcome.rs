@@ -51,8 +51,14 @@ impl Default for EgoStats {
 impl EgoStats {
     /// Adds one step: the ego is `scene.vehicles[0]`, the distance runs over the others.
     pub fn update(&mut self, scene: &Scene, ego_accel: f64, dt: f64) {
-        let ego = scene.ego();
-        for other in &scene.vehicles[1..] {
+        self.update_vehicle(scene, 0, ego_accel, dt);
+    }
+
+    /// Adds one step of vehicle `i` applying `accel`; the distance runs over the others.
+    pub fn update_vehicle(&mut self, scene: &Scene, i: usize, accel: f64, dt: f64) {
+        let ego = &scene.vehicles[i];
+        let others = scene.vehicles.iter().enumerate().filter(|&(j, _)| j != i);
+        for (_, other) in others {
             let d = (other.x - ego.x).hypot(other.y - ego.y);
             self.min_distance = self.min_distance.min(d);
             if other.on_ramp == ego.on_ramp {
@@ -60,11 +66,11 @@ impl EgoStats {
             }
         }
         self.sum_speed += ego.v;
-        self.sum_abs_accel += ego_accel.abs();
+        self.sum_abs_accel += accel.abs();
         if self.steps > 0 {
-            self.sum_abs_jerk += (ego_accel - self.last_accel).abs() / dt;
+            self.sum_abs_jerk += (accel - self.last_accel).abs() / dt;
         }
-        self.last_accel = ego_accel;
+        self.last_accel = accel;
         self.steps += 1;
     }
 }
@@ -99,10 +105,18 @@ pub struct EpisodeOutcome {
     pub returns: Vec<f64>,
     /// Discounted potential `sum_t gamma^t phi`.
     pub potential_return: f64,
-    /// Ego statistics.
-    pub ego: EgoStats,
+    /// Statistics of every vehicle over the episode (the ego first): the same measures as the
+    /// ego's, for studies of every controlled vehicle in merge traffic.
+    pub vehicles: Vec<EgoStats>,
     /// Final state.
     pub final_scene: Scene,
     /// Step-by-step record ([`Recording::Full`] only).
     pub trajectory: Option<Trajectory>,
+}
+
+impl EpisodeOutcome {
+    /// The ego's statistics.
+    pub fn ego(&self) -> &EgoStats {
+        &self.vehicles[0]
+    }
 }

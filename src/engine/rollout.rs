@@ -182,7 +182,7 @@ fn run_chunk(
             ego_merged_at: None,
             returns: vec![0.0; n],
             potential_return: 0.0,
-            ego: EgoStats::default(),
+            vehicles: vec![EgoStats::default(); n],
             final_scene: s.clone(),
             trajectory: full.then(|| Trajectory {
                 states: s.vehicles.clone(),
@@ -231,7 +231,9 @@ fn run_chunk(
                 *ret += discount * r;
             }
             out.potential_return += discount * rewards.potential;
-            out.ego.update(scene, applied[0], dt);
+            for (i, stats) in out.vehicles.iter_mut().enumerate() {
+                stats.update_vehicle(scene, i, applied[i], dt);
+            }
             for (v, &u) in scene.vehicles.iter_mut().zip(&applied) {
                 *v = advance(v, u, &rules);
             }

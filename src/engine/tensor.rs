@@ -205,7 +205,7 @@ pub enum Learning {
     Ego,
 }
 
-/// Applied actions: feasibility projection for target-lane players and the merge gate for
+/// Applied actions: feasibility projection towards same-lane neighbours and the merge gate for
 /// ramp players (when `feasibility`; with `only`, for the players where it is 1), then
 /// `[-g, g]` and the speed bounds.
 pub fn apply_limits(
@@ -229,7 +229,7 @@ pub fn apply_limits(
             dt,
             rules.tau_s,
         );
-        let lane = <Tensor as Num>::select(&batch.on_ramp, raw, &project_feasible(raw, &lo, &hi));
+        let lane = project_feasible(raw, &lo, &hi);
         if rules.merge_gate || batch.humans.iter().flatten().any(|&h| h) {
             merge_gate(rules, batch, &lane)
         } else {

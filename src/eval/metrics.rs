@@ -60,7 +60,7 @@ impl EpisodeMetrics {
         let collision = o.collision.is_some_and(|c| c.a == 0 || c.b == 0);
         EpisodeMetrics {
             other_collision: o.collision.is_some() && !collision,
-            ..Self::from_stats(&o.ego, collision, o.ego_merged_at.is_some())
+            ..Self::from_stats(o.ego(), collision, o.ego_merged_at.is_some())
         }
     }
 

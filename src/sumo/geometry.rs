@@ -13,9 +13,11 @@ use std::path::Path;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PlayerControl {
-    /// All eight players (the game of the paper: every player on the shared policy).
+    /// Every player: the ego's eight (Table I policies), or every vehicle in the control zone
+    /// (traffic policies): the game, everyone on the shared policy.
     All,
-    /// Only players whose vehicle type is controllable.
+    /// Only players whose vehicle type is controllable (with traffic policies: inside the
+    /// control zone). With no controllable freeway vehicles, the egos alone.
     Controllable,
 }
 

@@ -10,7 +10,12 @@
 //! projected at once assuming its neighbours keep their speed. The safety gap keeps that
 //! platoon `safety_gap` apart. The reward terms keep the paper's centre-to-centre `|x_i - x_j|`.
 //!
-//! **Feasible interval.** For a target-lane vehicle `i` with immediate same-lane leader `L` and
+//! **Both lanes.** The paper defines the feasible set for target-lane vehicles; ours applies the
+//! same interval on the ramp, towards a vehicle's ramp leader and follower, so that a ramp queue
+//! (merge traffic) keeps its TTC as the target lane does. A lone ramp vehicle (the paper's ego)
+//! has no same-lane neighbour, so its interval is unbounded and nothing changes for it.
+//!
+//! **Feasible interval.** For a vehicle `i` with immediate same-lane leader `L` and
 //! follower `F`, the action `a` is feasible when, one step later (neighbours keeping their
 //! speed), `TTC(i, L) >= tau_s` and `TTC(F, i) >= tau_s`. Positions after one step do not
 //! depend on `a` (eq. 1 moves `x` with the current speed), so each condition is a bound on the

@@ -53,7 +53,8 @@ pub fn advance(v: &Vehicle, u: f64, rules: &WorldRules) -> Vehicle {
 }
 
 /// The acceleration player `i` of `scene` applies for the raw action `raw`: when `feasibility`
-/// is on, projected onto its feasible interval in the target lane, or held by the merge gate
+/// is on, projected onto its feasible interval towards its same-lane neighbours (the target
+/// lane's, as Section V-ii, and a ramp queue's: ours), and held by the merge gate
 /// on the ramp (`sim.merge_gate`, [`crate::world::merge_gate`]; a human driver of merge
 /// traffic always merges by the gate, its lane-change rule); then clipped to
 /// `[-g, g]` and the speed bounds (Section V-ii). One function for the internal simulator and
@@ -69,7 +70,7 @@ pub fn applied_action(
     let dt = rules.dt;
     let me = &scene.vehicles[i];
     let mut a = raw;
-    if feasibility && !me.on_ramp {
+    if feasibility {
         let lead = neighbor_of(scene, nb.lane_leader, me);
         let follow = neighbor_of(scene, nb.lane_follower, me);
         let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, rules.clearance(), dt, rules.tau_s);
