@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Summarise scripts/traffic_acceptance.sh: one table per network, the checks of issue 15.
 
-    traffic_acceptance.py OUT GATE
+    traffic_acceptance.py OUT
 
 Reads OUT/<network>/<routes stem>_seed<S>_{ego,game,mainline30}/cosim.json (and the tripinfo
 files next to it) and prints Markdown.
@@ -36,11 +36,10 @@ def all_time_loss(folder, controller):
 
 
 def main():
-    out, gate = Path(sys.argv[1]), sys.argv[2]
-    shield = "merge gate shield on (SUMO's safe speed too)" if gate == "true" else \
-        "the policy alone: no merge gate (SUMO's safe speed, speed mode 25, still on)"
-    print(f"# Traffic policy in SUMO: {shield}\n")
+    out = Path(sys.argv[1])
+    print("# The traffic policy in SUMO against SUMO's drivers\n")
     failed = []
+    shields = set()
     for net in sorted(p for p in out.iterdir() if p.is_dir()):
         rows = {}
         beyond = []
@@ -50,6 +49,8 @@ def main():
                 continue
             scale, seed, mode = float(m.group(1)), int(m.group(2)), m.group(3)
             runs = {r["controller"]: r for r in json.loads((folder / "cosim.json").read_text())}
+            sh = runs["mpg"]["shields"]
+            shields.add((sh["merge_gate"], sh["speed_mode"], sh["lane_change_mode"]))
             if mode == "mainline30":
                 beyond.append((scale, seed, all_time_loss(folder, "mpg"), all_time_loss(folder, "sumo")))
                 continue
@@ -92,7 +93,10 @@ def main():
             for scale, seed, (mpg, n_mpg), (sumo, n_sumo) in sorted(beyond):
                 print(f"| {seed} | {mpg:.2f} ({n_mpg} vehicles) | {sumo:.2f} ({n_sumo}) | {'yes' if mpg <= sumo else 'no'} |")
         print()
-    print("## Verdict\n")
+    print("## Shields of the mpg runs\n")
+    for gate, speed, lane in sorted(shields):
+        print(f"- merge gate {'on' if gate else 'off'}, SUMO speed mode {speed}, lane-change mode {lane}")
+    print("\n## Verdict\n")
     if failed:
         print(f"{len(failed)} deployments miss the acceptance:\n")
         for f in failed:

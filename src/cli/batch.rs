@@ -39,9 +39,9 @@ pub struct BatchArgs {
     #[arg(long, default_value_t = 900.0)]
     end: f64,
     /// The merge gate as a shield in every run (`cosim --gate`): true or false (the learned
-    /// policy alone).
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    gate: bool,
+    /// policy alone); default as cosim's.
+    #[arg(long, action = clap::ArgAction::Set)]
+    gate: Option<bool>,
     /// Worker processes at a time (default: the number of cores).
     #[arg(long)]
     jobs: Option<usize>,
@@ -214,9 +214,10 @@ fn worker_args(args: &BatchArgs, config: &Config) -> Result<Vec<String>> {
         abs(&args.policies.of(Mode::Sarl, config))?,
         "--end".into(),
         args.end.to_string(),
-        "--gate".into(),
-        args.gate.to_string(),
     ];
+    if let Some(gate) = args.gate {
+        common.extend(["--gate".into(), gate.to_string()]);
+    }
     if let Some(m) = &args.merge {
         common.extend(["--merge".into(), abs(m)?]);
     }

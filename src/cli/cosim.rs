@@ -34,11 +34,12 @@ pub struct CosimArgs {
     /// Simulated duration (s).
     #[arg(long, default_value_t = 900.0)]
     end: f64,
-    /// The merge gate as a shield for the ramp vehicles the policy drives: true (the default)
-    /// or false (the learned policy alone). A policy is checked against --config as it is;
-    /// the shield is set on top, and the results say which.
-    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
-    gate: bool,
+    /// The merge gate as a shield for the ramp vehicles the policy drives: true or false (the
+    /// learned policy alone). Default: true for Table I policies (configs/paper.toml: they were
+    /// trained to rely on it), false for traffic policies (with it, their egos crawled: see
+    /// CHANGELOG.md). A policy is checked against --config as it is; the results say which.
+    #[arg(long, action = clap::ArgAction::Set)]
+    gate: Option<bool>,
     /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed towards any leader;
     /// 0: the policy's speed exactly, as the internal simulator).
     #[arg(long, default_value_t = 25)]
@@ -87,7 +88,7 @@ mod with_sumo {
     use crate::cli::common::{pick_policy, print, usage};
     use anyhow::{Context, Result};
     use mpgdrive::atomic;
-    use mpgdrive::config::Config;
+    use mpgdrive::config::{Config, ScenarioKind};
     use mpgdrive::policy::PolicyNet;
     use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
     use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, run_controller};
@@ -109,7 +110,8 @@ mod with_sumo {
                 .transpose()?;
             controllers.push((kind, net));
         }
-        config.sim.merge_gate = args.gate;
+        let gate = args.gate.unwrap_or(config.scenario.kind == ScenarioKind::Paper);
+        config.sim.merge_gate = gate;
         std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
         let runs = run_all(&config, &settings, controllers, &args.out)?;
         if args.json {
@@ -120,7 +122,7 @@ mod with_sumo {
                 args.sumocfg.display(),
                 args.seed,
                 args.end,
-                if args.gate { "on" } else { "off: the policy alone" },
+                if gate { "on" } else { "off" },
                 cosim::markdown(&runs)
             ))?;
         }

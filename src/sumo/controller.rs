@@ -624,8 +624,9 @@ impl Controller {
                 let nb: &Neighbors = &neighbors[gi][m];
                 // A waiting ego outlives its players (fixed at pick-up): the merge gate looks at
                 // the target lane as it is now, so a car that arrived later is not invisible.
+                // (A traffic game holds every car already; its neighbours index its scene.)
                 let lane_now;
-                let (scene, i) = if m == 0 && cars[j].on_ramp {
+                let (scene, i) = if m == 0 && cars[j].on_ramp && !self.traffic {
                     lane_now = ego_and_target_lane(cars, j, lane_width);
                     (&lane_now, 0)
                 } else {

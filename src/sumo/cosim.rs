@@ -158,6 +158,9 @@ pub struct ControllerRun {
     pub mean_time_loss: Option<f64>,
     /// Time spent in the network by every vehicle, from tripinfo (s; 0 when attached).
     pub vehicle_seconds: f64,
+    /// The shields the controlled vehicles ran under: the merge gate, and SUMO's speed and
+    /// lane-change modes (`sumo`: none applies).
+    pub shields: Shields,
     /// Wall time in SUMO's step (us per step).
     pub sumo_us_per_step: f64,
     /// Wall time in the controller (us per step).
@@ -333,6 +336,11 @@ pub fn run_controller(
     run.timespace = timespace;
     run.ssm_output = ssm_output;
     run.sumo_version = sumo_version;
+    run.shields = Shields {
+        merge_gate: config.sim.merge_gate,
+        speed_mode: settings.modes.speed,
+        lane_change_mode: settings.modes.lane_change,
+    };
     Ok(run)
 }
 
@@ -351,6 +359,18 @@ pub fn plain_sumo_us_per_step(settings: &CosimSettings) -> Result<f64, CosimErro
     let us = started.elapsed().as_secs_f64() * 1e6 / steps.max(1) as f64;
     sumo.close()?;
     Ok(us)
+}
+
+/// The shields of a run (see [`ControllerRun::shields`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct Shields {
+    /// The merge gate held ramp vehicles the policy drives.
+    pub merge_gate: bool,
+    /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed; 0: none).
+    pub speed_mode: i32,
+    /// SUMO lane-change mode of controlled vehicles (256: a merge waits while it would collide
+    /// at once; 0: none).
+    pub lane_change_mode: i32,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -417,6 +437,7 @@ fn summarise(
         controller_us_per_step,
         timespace: None,
         ssm_output: None,
+        shields: Shields::default(),
     }
 }
 
