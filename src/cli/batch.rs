@@ -15,8 +15,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// Arguments of `mpgdrive batch`.
 #[derive(Args)]
 pub struct BatchArgs {
-    /// Configuration file (TOML) passed to every run.
-    #[arg(long, default_value = "configs/paper.toml")]
+    /// Configuration file (TOML) passed to every run (as cosim's).
+    #[arg(long, default_value = "configs/traffic.toml")]
     config: PathBuf,
     /// Base SUMO configuration (its route files are replaced by each run's).
     #[arg(long)]

@@ -8,8 +8,10 @@ use std::path::PathBuf;
 /// Arguments of `mpgdrive cosim`.
 #[derive(Args)]
 pub struct CosimArgs {
-    /// Configuration file (TOML): vehicle limits, dt, feasibility rules of the policy.
-    #[arg(long, default_value = "configs/paper.toml")]
+    /// Configuration file (TOML): vehicle limits, dt, feasibility rules of the policy, and the
+    /// world its policies come from (configs/traffic.toml: the traffic policies;
+    /// configs/paper.toml: the paper's Table I policies).
+    #[arg(long, default_value = "configs/traffic.toml")]
     config: PathBuf,
     /// SUMO configuration to run.
     #[arg(long)]
