@@ -97,7 +97,10 @@ fn sumo_tracks(
         };
         sumo.move_to(&id, &format!("{first_edge}_{lane}"), pos - v.v * config.sim.dt)
             .unwrap();
+        // No speed or lane change of SUMO's own before the controller takes over (a vehicle
+        // placed on an acceleration lane would change lanes in the first step).
         sumo.set_speed_mode(&id, 0).unwrap();
+        sumo.set_lane_change_mode(&id, 0).unwrap();
         sumo.set_speed(&id, v.v).unwrap();
     }
     let mut controller = Controller::new(
@@ -245,18 +248,10 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
             .zip(&scene.vehicles)
             .filter(|(x, v)| v.on_ramp && **x >= config.scenario.conflict_point)
             .count();
-        let fastest = internal
-            .windows(2)
-            .flat_map(|w| w[0].iter().zip(&w[1]).map(|(a, b)| (b - a) / config.sim.dt))
-            .fold(0.0, f64::max);
-        let first_off = internal
-            .iter()
-            .zip(&sumo)
-            .position(|(a, b)| a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-6));
-        eprintln!("fastest {fastest:.2} m/s, first step off by 1e-6: {first_off:?}");
         eprintln!(
             "traffic episode: {merged} egos merged, worst |dx| over 13 vehicles and 10 s = {worst:.3e} m"
         );
+        assert!(merged >= 1, "the comparison includes a merge");
         assert!(worst < 0.5, "worst {worst} m");
     }
 }

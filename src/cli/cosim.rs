@@ -38,8 +38,8 @@ pub struct CosimArgs {
     end: f64,
     /// The merge gate as a shield for the ramp vehicles the policy drives: true or false (the
     /// learned policy alone). Default: true for Table I policies (configs/paper.toml: they were
-    /// trained to rely on it), false for traffic policies (with it, their egos crawled: see
-    /// CHANGELOG.md). A policy is checked against --config as it is; the results say which.
+    /// trained to rely on it), false for traffic policies (with it, their egos crawled:
+    /// docs/traffic_acceptance.md). A policy is checked against --config as it is; the results say which.
     #[arg(long, action = clap::ArgAction::Set)]
     gate: Option<bool>,
     /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed towards any leader;
