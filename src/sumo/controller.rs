@@ -339,7 +339,7 @@ impl Controller {
         self.lane_change_requested = requested;
         if self.timespace.is_some() {
             let marked: HashSet<&str> = if self.kind == ControllerKind::Sumo {
-                games.iter().map(|g| cars[g.members[0].0].id.as_str()).collect()
+                games.iter().map(|g| cars[g.ego_car()].id.as_str()).collect()
             } else {
                 driven.iter().map(String::as_str).collect()
             };
@@ -495,19 +495,23 @@ impl Controller {
                     continue;
                 }
             }
-            let mut members = vec![(k, 0)];
             if self.traffic {
-                // Merge traffic: every vehicle around the ego is in its game, now.
-                members.extend((0..cars.len()).filter(|&j| j != k).map(|j| (j, 0)));
-            } else {
-                members.extend(self.players[&c.id].iter().filter_map(|(id, slot)| {
-                    let &j = index.get(id.as_str())?;
-                    (!cars[j].on_ramp).then_some((j, *slot))
-                }));
+                // Merge traffic: every vehicle around the ego is in its game, now (in the
+                // order of `cars`, so that every game shares one scene).
+                games.push(Game {
+                    members: (0..cars.len()).map(|j| (j, 0)).collect(),
+                    ego: k,
+                });
+                continue;
             }
-            games.push(Game { members });
+            let mut members = vec![(k, 0)];
+            members.extend(self.players[&c.id].iter().filter_map(|(id, slot)| {
+                let &j = index.get(id.as_str())?;
+                (!cars[j].on_ramp).then_some((j, *slot))
+            }));
+            games.push(Game { members, ego: 0 });
         }
-        games.sort_by(|a, b| cars[b.members[0].0].x.total_cmp(&cars[a.members[0].0].x));
+        games.sort_by(|a, b| cars[b.ego_car()].x.total_cmp(&cars[a.ego_car()].x));
         Ok(games)
     }
 
@@ -580,38 +584,45 @@ impl Controller {
         let dim = layout.dim();
         let x_c = self.rules.conflict_point();
         let lane_width = self.config.scenario.lane_width;
-        let mut rows: Vec<(usize, usize, usize)> = Vec::new(); // (game, member, car)
+        let mut rows: Vec<(usize, usize, usize)> = Vec::new(); // (scene, member, car)
         let mut obs: Vec<f32> = Vec::new();
         let mut scenes = Vec::with_capacity(games.len());
         let mut claimed = HashSet::new();
         let mut neighbors = Vec::new();
-        for (gi, game) in games.iter().enumerate() {
-            let scene = Scene::new(
-                game.members
-                    .iter()
-                    .map(|&(j, _)| cars[j].vehicle(lane_width))
-                    .collect(),
-            );
-            let mut nb = Vec::new();
-            find_neighbors(&scene, &mut self.order, &mut nb);
-            let ego_car = &cars[game.members[0].0];
+        for game in games {
+            // Traffic games share one scene (every car, in the order of `cars`): built once.
+            if scenes.is_empty() || !self.traffic {
+                let scene = Scene::new(
+                    game.members
+                        .iter()
+                        .map(|&(j, _)| cars[j].vehicle(lane_width))
+                        .collect(),
+                );
+                let mut nb = Vec::new();
+                find_neighbors(&scene, &mut self.order, &mut nb);
+                scenes.push(scene);
+                neighbors.push(nb);
+            }
+            let si = scenes.len() - 1;
+            let (scene, nb) = (&scenes[si], &neighbors[si]);
+            let ego_car = &cars[game.ego_car()];
             if let Some(record) = self.egos.get_mut(&ego_car.id) {
-                record.stats.update(&scene, ego_car.accel, self.rules.dt);
+                record
+                    .stats
+                    .update_vehicle(scene, game.ego, ego_car.accel, self.rules.dt);
             }
             if self.kind != ControllerKind::Sumo {
                 for (m, &(j, slot)) in game.members.iter().enumerate() {
-                    let drive =
-                        m == 0 || (self.kind == ControllerKind::Mpg && self.may_drive_player(&cars[j]));
+                    let drive = m == game.ego
+                        || (self.kind == ControllerKind::Mpg && self.may_drive_player(&cars[j]));
                     if drive && claimed.insert(j) {
                         let start = obs.len();
                         obs.resize(start + dim, 0.0);
-                        observe_as(layout, x_c, &scene, m, slot, &nb[m], &mut obs[start..]);
-                        rows.push((gi, m, j));
+                        observe_as(layout, x_c, scene, m, slot, &nb[m], &mut obs[start..]);
+                        rows.push((si, m, j));
                     }
                 }
             }
-            scenes.push(scene);
-            neighbors.push(nb);
         }
         let Some(policy) = self.policy.as_mut().filter(|_| !rows.is_empty()) else {
             return Vec::new();
@@ -620,8 +631,8 @@ impl Controller {
         policy.act(&obs, rows.len(), &mut raw);
         rows.iter()
             .zip(raw)
-            .map(|(&(gi, m, j), a)| {
-                let nb: &Neighbors = &neighbors[gi][m];
+            .map(|(&(si, m, j), a)| {
+                let nb: &Neighbors = &neighbors[si][m];
                 // A waiting ego outlives its players (fixed at pick-up): the merge gate looks at
                 // the target lane as it is now, so a car that arrived later is not invisible.
                 // (A traffic game holds every car already; its neighbours index its scene.)
@@ -630,7 +641,7 @@ impl Controller {
                     lane_now = ego_and_target_lane(cars, j, lane_width);
                     (&lane_now, 0)
                 } else {
-                    (&scenes[gi], m)
+                    (&scenes[si], m)
                 };
                 let a = applied_action(
                     &self.rules,
@@ -686,10 +697,19 @@ fn ego_and_target_lane(cars: &[Car], j: usize, lane_width: f64) -> Scene {
     )
 }
 
-/// One ego's game: `(index into cars, player slot)`, the ego first with slot 0.
+/// One ego's game: `(index into cars, player slot)` of its members, and which member is the
+/// ego (the first, slot 0, in a Table I game; a traffic game holds every car in order).
 #[derive(Debug, Clone)]
 struct Game {
     members: Vec<(usize, usize)>,
+    ego: usize,
+}
+
+impl Game {
+    /// The ego's index into `cars`.
+    fn ego_car(&self) -> usize {
+        self.members[self.ego].0
+    }
 }
 
 #[cfg(test)]
@@ -801,6 +821,7 @@ mod tests {
         let cars = [car("ego", 293.0, 10.0, true), car("lane.1", 288.0, 12.0, false)];
         let game = Game {
             members: vec![(0, 0), (1, 5)],
+            ego: 0,
         };
         let commands = c.decide(&cars, &[game]);
         let ego = commands.iter().find(|(j, _)| *j == 0).unwrap().1;
