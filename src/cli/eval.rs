@@ -65,19 +65,25 @@ pub fn run(args: EvalArgs) -> Result<ExitCode> {
         mpgdrive::atomic::write(&path, study.episodes_csv())
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
-    if args.json {
+    let footer = format!(
+        "({} policies x {} kinds x {} scenarios in {wall:.2} s)",
+        policies.len(),
+        args.surrounding.len(),
+        config.eval.test_scenarios
+    );
+    print_study(args.json, &study, &study.markdown(), &footer)
+}
+
+/// Prints a study as JSON, or as Markdown with a footer line.
+fn print_study(json: bool, study: &impl serde::Serialize, markdown: &str, footer: &str) -> Result<ExitCode> {
+    if json {
         outln!(
             "{}",
-            serde_json::to_string_pretty(&study).context("serialising the study")?
+            serde_json::to_string_pretty(study).context("serialising the study")?
         );
     } else {
-        outln!("{}", study.markdown());
-        outln!(
-            "({} policies x {} kinds x {} scenarios in {wall:.2} s)",
-            policies.len(),
-            args.surrounding.len(),
-            config.eval.test_scenarios
-        );
+        outln!("{markdown}");
+        outln!("{footer}");
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -97,19 +103,11 @@ fn traffic(
         ));
     }
     let study = traffic_study(config, policies, threads)?;
-    if args.json {
-        outln!(
-            "{}",
-            serde_json::to_string_pretty(&study).context("serialising the study")?
-        );
-    } else {
-        outln!("{}", study.markdown());
-        outln!(
-            "({} policies x 2 kinds x {} scenarios in {:.2} s)",
-            policies.len(),
-            config.eval.test_scenarios,
-            start.elapsed().as_secs_f64()
-        );
-    }
-    Ok(ExitCode::SUCCESS)
+    let footer = format!(
+        "({} policies x 2 kinds x {} scenarios in {:.2} s)",
+        policies.len(),
+        config.eval.test_scenarios,
+        start.elapsed().as_secs_f64()
+    );
+    print_study(args.json, &study, &study.markdown(), &footer)
 }

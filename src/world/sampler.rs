@@ -69,6 +69,20 @@ pub fn sample_scenes(config: &Config, seed: u64, first: usize, count: usize) -> 
         .collect()
 }
 
+/// The ego's initial position and speed of scenario `index`: uniform inside its stratum's cell,
+/// two draws from `rng`.
+pub fn stratified_ego(config: &Config, index: usize, rng: &mut ChaCha8Rng) -> (f64, f64) {
+    let p = &config.sampling;
+    let (cp, cv) = stratum(config, index);
+    let cell = |range: [f64; 2], parts: usize, at: usize, u: f64| {
+        let w = (range[1] - range[0]) / parts as f64;
+        range[0] + w * (at as f64 + u)
+    };
+    let x = cell(p.ego_position, p.strata[0], cp, rng.random::<f64>());
+    let v = cell(p.ego_speed, p.strata[1], cv, rng.random::<f64>());
+    (x, v)
+}
+
 /// Draws scenario `index` of `seed`: the paper's, or merge traffic
 /// ([`crate::world::traffic`]) when the configuration says so.
 pub fn sample_scene(config: &Config, seed: u64, index: usize) -> Scene {
@@ -78,13 +92,7 @@ pub fn sample_scene(config: &Config, seed: u64, index: usize) -> Scene {
     let p = &config.sampling;
     let road = Road::new(config);
     let mut rng = scenario_rng(seed, index as u64);
-    let (cp, cv) = stratum(config, index);
-    let cell = |range: [f64; 2], parts: usize, at: usize, u: f64| {
-        let w = (range[1] - range[0]) / parts as f64;
-        range[0] + w * (at as f64 + u)
-    };
-    let ego_x = cell(p.ego_position, p.strata[0], cp, rng.random::<f64>());
-    let ego_v = cell(p.ego_speed, p.strata[1], cv, rng.random::<f64>());
+    let (ego_x, ego_v) = stratified_ego(config, index, &mut rng);
     let uniform = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
 
     let target = |x: f64, v: f64| Vehicle {

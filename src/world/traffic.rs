@@ -22,7 +22,7 @@
 
 use crate::config::{Config, TrafficConfig};
 use crate::world::geometry::Road;
-use crate::world::sampler::{scenario_rng, stratum};
+use crate::world::sampler::{scenario_rng, stratified_ego};
 use crate::world::state::{Scene, Vehicle};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -89,13 +89,7 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
     };
 
     // The ego, stratified as the paper's.
-    let (cp, cv) = stratum(config, index);
-    let cell = |range: [f64; 2], parts: usize, at: usize, u: f64| {
-        let w = (range[1] - range[0]) / parts as f64;
-        range[0] + w * (at as f64 + u)
-    };
-    let ego_x = cell(p.ego_position, p.strata[0], cp, rng.random::<f64>());
-    let ego_v = cell(p.ego_speed, p.strata[1], cv, rng.random::<f64>());
+    let (ego_x, ego_v) = stratified_ego(config, index, &mut rng);
     let mut vehicles = vec![car(ego_x, ego_v, true)];
 
     // The ramp stream: some ahead of the ego (front-most last), the rest behind.
