@@ -1,12 +1,14 @@
 //! The co-simulation controller: once per SUMO step it reads the vehicles on the ramp and the
 //! target lane, keeps one game per ego (the ego and the 4 leading and 4 following target-lane
 //! vehicles nearest to it when it was picked up, within the reach of training's initial
-//! states, in the player slots of training; a player that leaves the target lane drops out),
-//! builds Table I observations with the training builder, runs the policy once for every
-//! controlled vehicle, applies the feasibility projection and limits of the internal
-//! simulator, and sets SUMO's speed (see Integration).
-//! Games are fixed as an internal episode's players are: re-forming them every step made the
-//! trained egos stop altogether (CHANGELOG.md, "Design notes").
+//! states, in the player slots of training; a player that leaves the target lane drops out;
+//! with a traffic policy, every vehicle on the ramp and target lanes, formed anew each step),
+//! builds observations with the training builder (Table I or the traffic layout), runs the
+//! policy once for every controlled vehicle, applies the feasibility projection and limits of
+//! the internal simulator, and sets SUMO's speed (see Integration).
+//! Table I games are fixed as an internal episode's players are: re-forming them every step
+//! made the trained egos stop altogether (CHANGELOG.md, "Design notes"). A traffic policy has
+//! no player slots and was trained on whole merge sections, so its game is simply the traffic.
 //!
 //! Another Rust program drives it the same way `mpgdrive cosim` does:
 //!
