@@ -93,7 +93,7 @@ mod with_sumo {
     use mpgdrive::config::{Config, ScenarioKind};
     use mpgdrive::policy::PolicyNet;
     use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
-    use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, run_controller};
+    use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, Shields, run_controller};
     use mpgdrive::sumo::{ControlModes, ControllerKind, MergeGeometry};
     use std::path::Path;
     use std::process::ExitCode;
@@ -257,10 +257,11 @@ mod with_sumo {
         atomic::write(
             &out.join("cosim.md"),
             format!(
-                "Command: `{}`\n\nmpgdrive {}, {}.\n\n{}",
+                "Command: `{}`\n\nmpgdrive {}, {}. {}\n\n{}",
                 command.join(" "),
                 mpgdrive::VERSION,
                 runs.first().map_or("SUMO not run", |r| r.sumo_version.as_str()),
+                runs.first().map_or(String::new(), |r| shields_line(&r.shields)),
                 cosim::markdown(runs)
             ),
         )?;
@@ -269,6 +270,16 @@ mod with_sumo {
         cosim::restore_ssm_outputs(runs)?;
         write_diagrams(out, runs)?;
         Ok(())
+    }
+
+    /// The shields of the controlled vehicles, as one sentence.
+    fn shields_line(s: &Shields) -> String {
+        format!(
+            "Shields of the vehicles the policies drive: merge gate {}, SUMO speed mode {}, lane-change mode {}.",
+            if s.merge_gate { "on" } else { "off" },
+            s.speed_mode,
+            s.lane_change_mode
+        )
     }
 
     /// `timespace_<controller>.png` for every run that recorded one, all on one scale.
