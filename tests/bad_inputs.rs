@@ -225,6 +225,45 @@ fn cases() -> Vec<Case> {
             "sim.dt",
         ),
         c(
+            "a traffic world without its [traffic] section",
+            vec![("c.toml", smoke_with("n_followers", "4\nkind = \"traffic\""))],
+            vec![
+                "eval",
+                "--config",
+                "{D}/c.toml",
+                "--policy",
+                "policies/traffic/mpg",
+            ],
+            "needs a [traffic] section",
+        ),
+        c(
+            "a traffic human share above 1",
+            vec![(
+                "c.toml",
+                read("configs/traffic.toml").replace("human_share = [0.0, 0.6]", "human_share = [0.0, 1.6]"),
+            )],
+            vec![
+                "eval",
+                "--config",
+                "{D}/c.toml",
+                "--policy",
+                "policies/traffic/mpg",
+            ],
+            "traffic.human_share",
+        ),
+        c(
+            "a Table I policy for a traffic world",
+            Vec::new(),
+            vec![
+                "eval",
+                "--config",
+                "configs/traffic.toml",
+                "--policy",
+                "policies/mpg",
+            ],
+            "observation layout version 2",
+        ),
+        c(
             "an empty policy folder",
             vec![("pol/readme.txt", "nothing".into())],
             vec!["eval", "--config", "configs/smoke.toml", "--policy", "{D}/pol"],
