@@ -67,6 +67,20 @@ fn cases() -> Vec<Case> {
         args,
         needle,
     };
+    let traffic_eval = |name, text: String, needle| {
+        c(
+            name,
+            vec![("c.toml", text)],
+            vec![
+                "eval",
+                "--config",
+                "{D}/c.toml",
+                "--policy",
+                "policies/traffic/mpg",
+            ],
+            needle,
+        )
+    };
     let demo = |name, text: String, needle| {
         c(
             name,
@@ -224,31 +238,14 @@ fn cases() -> Vec<Case> {
             vec!["eval", "--config", "{D}/c.toml", "--policy", "policies/mpg"],
             "sim.dt",
         ),
-        c(
+        traffic_eval(
             "a traffic world without its [traffic] section",
-            vec![("c.toml", smoke_with("n_followers", "4\nkind = \"traffic\""))],
-            vec![
-                "eval",
-                "--config",
-                "{D}/c.toml",
-                "--policy",
-                "policies/traffic/mpg",
-            ],
+            smoke_with("n_followers", "4\nkind = \"traffic\""),
             "needs a [traffic] section",
         ),
-        c(
+        traffic_eval(
             "a traffic human share above 1",
-            vec![(
-                "c.toml",
-                read("configs/traffic.toml").replace("human_share = [0.0, 0.6]", "human_share = [0.0, 1.6]"),
-            )],
-            vec![
-                "eval",
-                "--config",
-                "{D}/c.toml",
-                "--policy",
-                "policies/traffic/mpg",
-            ],
+            read("configs/traffic.toml").replace("human_share = [0.0, 0.6]", "human_share = [0.0, 1.6]"),
             "traffic.human_share",
         ),
         c(
