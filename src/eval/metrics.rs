@@ -157,12 +157,8 @@ pub fn distance_cell(d: Option<f64>) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::state::test_car;
-    use crate::world::state::{Scene, Vehicle};
-
-    fn car(x: f64, on_ramp: bool) -> Vehicle {
-        test_car(x, 10.0, on_ramp)
-    }
+    use crate::world::state::Scene;
+    use crate::world::state::cruising_car as car;
 
     #[test]
     fn the_in_lane_distance_counts_only_players_in_the_egos_lane() {

@@ -86,8 +86,7 @@ fn figures(scene: &Scene, o: &EpisodeOutcome) -> EpisodeFigures {
     let collision = o
         .collision
         .is_some_and(|c| !scene.is_human(c.a) || !scene.is_human(c.b));
-    let failure =
-        !collision && o.collision.is_none() && controlled.iter().any(|&i| o.final_scene.vehicles[i].on_ramp);
+    let failure = o.collision.is_none() && controlled.iter().any(|&i| o.final_scene.vehicles[i].on_ramp);
     let mean =
         |f: &dyn Fn(usize) -> f64| controlled.iter().map(|&i| f(i)).sum::<f64>() / controlled.len() as f64;
     let per_step = |i: usize, sum: f64| sum / o.vehicles[i].steps.max(1) as f64;

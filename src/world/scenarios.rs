@@ -104,11 +104,7 @@ pub fn merged_between(scene: &Scene) -> [usize; 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::state::test_car;
-
-    fn car(x: f64, on_ramp: bool) -> Vehicle {
-        test_car(x, 10.0, on_ramp)
-    }
+    use crate::world::state::cruising_car as car;
 
     #[test]
     fn the_ego_merged_between_its_nearest_target_lane_players() {

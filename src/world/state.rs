@@ -76,3 +76,9 @@ pub(crate) fn test_car(x: f64, v: f64, on_ramp: bool) -> Vehicle {
         on_ramp,
     }
 }
+
+/// A test car at `x` cruising at 10 m/s, on the ramp or in the target lane.
+#[cfg(test)]
+pub(crate) fn cruising_car(x: f64, on_ramp: bool) -> Vehicle {
+    test_car(x, 10.0, on_ramp)
+}
