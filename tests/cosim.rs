@@ -12,6 +12,7 @@ use mpgdrive::engine::rollout::{Recording, RolloutOptions, rollout};
 use mpgdrive::policy::PolicyActor;
 use mpgdrive::policy::file::load;
 use mpgdrive::policy::observation::Layout;
+use mpgdrive::sumo::inputs::check_geometry;
 use mpgdrive::sumo::{Backend, ControlModes, Controller, ControllerKind, MergeGeometry, NewVehicle, Sumo};
 use mpgdrive::world::drivers::Driver;
 use mpgdrive::world::sampler::{Purpose, purpose_seed, sample_scenes};
@@ -103,9 +104,16 @@ fn sumo_tracks(
         sumo.set_lane_change_mode(&id, 0).unwrap();
         sumo.set_speed(&id, v.v).unwrap();
     }
+    let positions = check_geometry(
+        &geometry,
+        Path::new("merge.toml"),
+        &Path::new(NET).join("merge.net.xml"),
+    )
+    .unwrap();
     let mut controller = Controller::new(
         config.clone(),
         geometry,
+        positions,
         ControllerKind::Mpg,
         Some(net),
         ControlModes::EXACT,

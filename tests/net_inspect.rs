@@ -16,12 +16,12 @@ fn the_bundled_merges_are_found_and_the_proposals_fit_their_networks() {
         (
             "sumo_nets/i80_merge/i80.net.xml",
             "sumo_nets/i80_merge/merge.toml",
-            222.0,
+            422.0,
         ),
         (
             "sumo_nets/single_lane_merge/merge.net.xml",
             "sumo_nets/single_lane_merge/merge.toml",
-            200.0,
+            400.0,
         ),
     ] {
         let net = Path::new(env!("CARGO_MANIFEST_DIR")).join(net);

@@ -163,7 +163,7 @@ mod with_sumo {
             .clone()
             .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
         let geometry = MergeGeometry::load(&merge)?;
-        let ssm_equipped =
+        let (positions, ssm_equipped) =
             mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometry, &merge)?;
         if !ssm_equipped {
             eprintln!(
@@ -176,6 +176,7 @@ mod with_sumo {
             route_files: args.route_files.clone(),
             geometry,
             geometry_path: merge,
+            positions,
             seed: args.seed,
             end: args.end,
             modes: ControlModes {

@@ -13,11 +13,11 @@
 //! Another Rust program drives it the same way `mpgdrive cosim` does:
 //!
 //! ```no_run
-//! # use mpgdrive::sumo::{Backend, Sumo, MergeGeometry, Controller, ControllerKind, ControlModes};
-//! # fn run(config: mpgdrive::Config, geometry: MergeGeometry, policy: mpgdrive::policy::PolicyNet)
+//! # use mpgdrive::sumo::{Backend, Sumo, MergeGeometry, LanePositions, Controller, ControllerKind, ControlModes};
+//! # fn run(config: mpgdrive::Config, geometry: MergeGeometry, positions: LanePositions, policy: mpgdrive::policy::PolicyNet)
 //! # -> Result<(), mpgdrive::sumo::SumoError> {
 //! let mut sumo = Sumo::start(Backend::Libsumo, &["sumo".into(), "-c".into(), "x.sumocfg".into()])?;
-//! let mut controller = Controller::new(config, geometry, ControllerKind::Mpg, Some(policy), ControlModes::SAFE);
+//! let mut controller = Controller::new(config, geometry, positions, ControllerKind::Mpg, Some(policy), ControlModes::SAFE);
 //! while sumo.min_expected()? > 0 {
 //!     sumo.step()?;
 //!     controller.step(&mut sumo)?;
@@ -58,6 +58,7 @@ use crate::policy::observation::{BatchPolicy, Layout, observe_as};
 use crate::render::timespace::{Road, Sample, TimeSpace};
 use crate::sumo::geometry::{MergeGeometry, PlayerControl};
 use crate::sumo::kind::ControllerKind;
+use crate::sumo::positions::LanePositions;
 use crate::sumo::{Sumo, SumoError};
 use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
@@ -98,7 +99,7 @@ impl ControlModes {
 #[derive(Debug, Clone)]
 struct Car {
     id: String,
-    /// Centre x (m).
+    /// Centre position along the lanes (m; [`LanePositions`]): the internal simulator's x.
     x: f64,
     v: f64,
     accel: f64,
@@ -178,6 +179,7 @@ pub struct Controller {
     /// The world's rules at the network's conflict point.
     rules: WorldRules,
     geometry: MergeGeometry,
+    positions: LanePositions,
     kind: ControllerKind,
     policy: Option<PolicyNet>,
     modes: ControlModes,
@@ -219,10 +221,12 @@ impl Controller {
     /// A controller; `policy` is required for `mpg` and `sarl`. Every rule (observation,
     /// feasibility projection, merge gate, release) uses the network's conflict point, from
     /// `geometry`, not the one of `config`'s internal world: the observation reads distances
-    /// to it, so a policy deploys at any conflict point.
+    /// to it, so a policy deploys at any conflict point. Vehicles are placed along the lanes
+    /// by `positions` ([`crate::sumo::inputs::check_geometry`] gives them).
     pub fn new(
         config: Config,
         geometry: MergeGeometry,
+        positions: LanePositions,
         kind: ControllerKind,
         policy: Option<PolicyNet>,
         modes: ControlModes,
@@ -234,6 +238,7 @@ impl Controller {
             config,
             rules,
             geometry,
+            positions,
             kind,
             policy,
             modes,
@@ -419,15 +424,20 @@ impl Controller {
         Ok(())
     }
 
-    /// Ramp and target-lane vehicles, centre positions.
+    /// Ramp and target-lane vehicles, centre positions along the lanes.
     fn read_cars(&mut self, sumo: &Sumo, gone: &HashSet<String>) -> Result<Vec<Car>, SumoError> {
-        let mut found: Vec<(String, String)> = Vec::new();
+        // (vehicle, ramp or target lane it belongs to, lane it is on)
+        let mut found: Vec<(String, String, String)> = Vec::new();
         for lane in self.geometry.ramp_lanes.iter().chain(&self.geometry.target_lanes) {
-            found.extend(sumo.lane_vehicles(lane)?.into_iter().map(|id| (id, lane.clone())));
+            found.extend(
+                sumo.lane_vehicles(lane)?
+                    .into_iter()
+                    .map(|id| (id, lane.clone(), lane.clone())),
+            );
         }
-        // A vehicle crossing a junction is on an internal lane for a step: it keeps the class of
-        // the lane it came from.
-        let listed: HashSet<&str> = found.iter().map(|(id, _)| id.as_str()).collect();
+        // A vehicle crossing a junction is on an internal lane for a step or more: it keeps the
+        // class of the lane it came from.
+        let listed: HashSet<&str> = found.iter().map(|(id, _, _)| id.as_str()).collect();
         let crossing: Vec<(String, String)> = self
             .lane_class
             .iter()
@@ -436,18 +446,23 @@ impl Controller {
             .collect();
         for (id, lane) in crossing {
             // An error here means the vehicle was removed (by another client, say): skip it.
-            if sumo.lane_id(&id).is_ok_and(|l| l.starts_with(':')) {
-                found.push((id, lane));
+            if let Ok(on) = sumo.lane_id(&id) {
+                if on.starts_with(':') {
+                    found.push((id, lane, on));
+                }
             }
         }
         let x_c = self.rules.conflict_point();
         let mut cars = Vec::with_capacity(found.len());
         self.lane_class.clear();
-        for (id, lane) in found {
-            let ramp = self.geometry.is_ramp(&lane);
+        for (id, lane, on) in found {
             let s = sumo.vehicle(&id)?;
-            let heading = (90.0 - s.angle).to_radians();
-            let x = s.x - 0.5 * s.length * heading.cos();
+            // A junction lane that leads off the merge: the vehicle has left it.
+            let Some(front) = self.positions.position(&on, s.lane_pos) else {
+                continue;
+            };
+            let x = front - 0.5 * s.length;
+            let ramp = self.geometry.is_ramp(&lane);
             if self
                 .commanded
                 .get(&id)
@@ -764,10 +779,18 @@ mod tests {
             release_after: 50.0,
             ramp_lanes: vec!["merge_0".into()],
             target_lanes: vec!["merge_1".into()],
+            target_start: 0.0,
             controllable_types: vec!["ctrl".into()],
             players: PlayerControl::All,
         };
-        Controller::new(config, geometry, ControllerKind::Mpg, None, ControlModes::SAFE)
+        Controller::new(
+            config,
+            geometry,
+            LanePositions::default(),
+            ControllerKind::Mpg,
+            None,
+            ControlModes::SAFE,
+        )
     }
 
     #[test]
@@ -816,6 +839,7 @@ mod tests {
                 conflict_point: 300.0,
                 ..c.geometry.clone()
             },
+            LanePositions::default(),
             ControllerKind::Mpg,
             Some(full_throttle(&c.config)),
             ControlModes::SAFE,

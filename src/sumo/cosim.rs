@@ -17,6 +17,7 @@ use crate::render::timespace::TimeSpace;
 use crate::sumo::controller::{CollisionEvent, ControlModes, Controller, EgoRecord};
 use crate::sumo::geometry::MergeGeometry;
 use crate::sumo::kind::ControllerKind;
+use crate::sumo::positions::LanePositions;
 use crate::sumo::{Backend, Sumo, SumoError};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -50,6 +51,9 @@ pub struct CosimSettings {
     pub geometry: MergeGeometry,
     /// Where the geometry came from (for messages).
     pub geometry_path: PathBuf,
+    /// Where the geometry's lanes lie along the road
+    /// ([`crate::sumo::inputs::check_geometry`]).
+    pub positions: LanePositions,
     /// SUMO's random seed.
     pub seed: u64,
     /// Simulated duration (s).
@@ -279,6 +283,7 @@ pub fn run_controller(
     let mut controller = Controller::new(
         config.clone(),
         settings.geometry.clone(),
+        settings.positions.clone(),
         kind,
         policy,
         settings.modes,

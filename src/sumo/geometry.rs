@@ -1,9 +1,9 @@
 //! Merge geometry of a SUMO network (`sumo_nets/*/merge.toml`): where the conflict point is,
 //! which lanes are the ramp and the target lane, which vehicle types mpgdrive may drive.
 //!
-//! Positions are the network x coordinate of a vehicle's centre: the freeway must run along
-//! +x (both bundled networks do; `netconvert --offset.disable-normalization` keeps the
-//! coordinates of the plain XML sources).
+//! Positions are distances along the lanes ([`crate::sumo::positions`]): the first target
+//! lane starts at `target_start` (0 unless set), so any network shape works: curved ramps,
+//! rotated or bending freeways.
 
 use crate::config::{ConfigError, check, finite, load_toml, non_negative};
 use serde::{Deserialize, Serialize};
@@ -25,16 +25,22 @@ pub enum PlayerControl {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MergeGeometry {
-    /// Network x of the conflict point (m).
+    /// Position of the conflict point (m): on the acceleration lane.
     pub conflict_point: f64,
-    /// A controllable ramp vehicle becomes an ego once its centre passes this x (m).
+    /// A controllable ramp vehicle becomes an ego once its centre passes this position (m).
     pub control_from: f64,
     /// Control of a merged ego ends this far past the conflict point (m).
     pub release_after: f64,
-    /// Lanes of the ramp and of the acceleration lane (egos drive here before merging).
+    /// Lanes of the ramp, in driving order, the acceleration lane last (egos drive here before
+    /// merging).
     pub ramp_lanes: Vec<String>,
-    /// Lanes of the target lane (players drive here; an ego merges into one).
+    /// Lanes of the target lane, in driving order (players drive here; an ego merges into
+    /// one).
     pub target_lanes: Vec<String>,
+    /// Position of the start of the first target lane (m; default 0). The bundled networks
+    /// set it so that positions are their network x (NGSIM's Local_Y on `i80_merge`).
+    #[serde(default)]
+    pub target_start: f64,
     /// Vehicle types mpgdrive may drive as egos.
     pub controllable_types: Vec<String>,
     /// Which players the MPG policy drives.
@@ -54,6 +60,7 @@ impl MergeGeometry {
         finite("conflict_point", self.conflict_point)?;
         finite("control_from", self.control_from)?;
         non_negative("release_after", self.release_after)?;
+        finite("target_start", self.target_start)?;
         check(
             "control_from",
             self.control_from < self.conflict_point,

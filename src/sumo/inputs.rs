@@ -4,7 +4,7 @@
 //! exist. SUMO itself would find most of this only after starting (and writing its outputs),
 //! and a conflict point beyond the network would run to the end with no ego.
 
-use crate::sumo::MergeGeometry;
+use crate::sumo::{LanePositions, MergeGeometry};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
@@ -140,60 +140,40 @@ pub(crate) fn with_network<T>(
     Ok(f(&doc))
 }
 
-/// The x coordinates of a `<lane>`'s shape, in order (m).
-pub(crate) fn shape_xs(lane: roxmltree::Node) -> Vec<f64> {
-    lane.attribute("shape")
-        .unwrap_or("")
-        .split_whitespace()
-        .filter_map(|p| p.split(',').next()?.parse().ok())
-        .collect()
-}
-
-/// A network's lanes: id and the x range of its shape (m).
-fn network_lanes(net: &Path) -> Result<Vec<(String, f64, f64)>, InputError> {
+/// Checks `geometry` against the network and returns where its lanes lie along the road:
+/// its lanes exist and each leads to the next one listed, the last ramp lane is an
+/// acceleration lane beside a target lane, and the conflict point lies on it.
+pub fn check_geometry(
+    geometry: &MergeGeometry,
+    geometry_path: &Path,
+    net: &Path,
+) -> Result<LanePositions, InputError> {
+    let in_net = |message: String| content(geometry_path, format!("{message} (network {})", net.display()));
     with_network(net, |doc| {
-        doc.descendants()
+        let ids: Vec<String> = doc
+            .descendants()
             .filter(|n| n.has_tag_name("lane"))
-            .filter_map(|lane| {
-                let xs = shape_xs(lane);
-                let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
-                let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                Some((lane.attribute("id")?.to_owned(), lo, hi))
-            })
-            .collect()
-    })
-}
-
-/// Checks `geometry` against the network: its lanes exist, and the conflict point lies within
-/// the x range of the ramp lanes and of the target lanes.
-pub fn check_geometry(geometry: &MergeGeometry, geometry_path: &Path, net: &Path) -> Result<(), InputError> {
-    let lanes = network_lanes(net)?;
-    let ids: Vec<String> = lanes.iter().map(|l| l.0.clone()).collect();
-    geometry
-        .check_lanes(&ids)
-        .map_err(|e| content(geometry_path, format!("{e} (network {})", net.display())))?;
-    let x_c = geometry.conflict_point;
-    for (key, list) in [
-        ("ramp_lanes", &geometry.ramp_lanes),
-        ("target_lanes", &geometry.target_lanes),
-    ] {
-        let (lo, hi) = lanes
-            .iter()
-            .filter(|l| list.contains(&l.0))
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), l| {
-                (lo.min(l.1), hi.max(l.2))
-            });
+            .filter_map(|n| n.attribute("id").map(str::to_owned))
+            .collect();
+        geometry.check_lanes(&ids).map_err(|e| in_net(e.to_string()))?;
+        let positions = LanePositions::of_network(
+            doc,
+            &geometry.ramp_lanes,
+            &geometry.target_lanes,
+            geometry.target_start,
+        )
+        .map_err(in_net)?;
+        let accel = geometry.ramp_lanes.last().expect("validated: not empty");
+        let (lo, hi) = positions.span(accel).expect("placed");
+        let x_c = geometry.conflict_point;
         if !(lo <= x_c && x_c <= hi) {
-            return Err(content(
-                geometry_path,
-                format!(
-                    "conflict_point {x_c} m is not on the {key} (their x runs from {lo:.1} to {hi:.1} m in {})",
-                    net.display()
-                ),
-            ));
+            return Err(in_net(format!(
+                "conflict_point {x_c} m is not on the acceleration lane `{accel}` (its positions run \
+                 from {lo:.1} to {hi:.1} m along the lanes)"
+            )));
         }
-    }
-    Ok(())
+        Ok(positions)
+    })?
 }
 
 /// Checks route (and additional) files: well-formed XML, and every `route` a vehicle or flow
@@ -237,15 +217,15 @@ pub fn check_routes(files: &[PathBuf]) -> Result<bool, InputError> {
 
 /// Every check before a co-simulation, given the configuration's files: the geometry against
 /// its network, and the route files (`route_files`, a comma-separated list as SUMO takes it,
-/// replacing the configuration's when given). Returns whether the inputs equip any vehicle
-/// with the SSM device.
+/// replacing the configuration's when given). Returns where the geometry's lanes lie along
+/// the road, and whether the inputs equip any vehicle with the SSM device.
 pub fn check_inputs(
     files: &ConfigFiles,
     route_files: Option<&Path>,
     geometry: &MergeGeometry,
     geometry_path: &Path,
-) -> Result<bool, InputError> {
-    check_geometry(geometry, geometry_path, &files.net)?;
+) -> Result<(LanePositions, bool), InputError> {
+    let positions = check_geometry(geometry, geometry_path, &files.net)?;
     let mut routes = match route_files {
         Some(r) => r
             .to_string_lossy()
@@ -255,5 +235,5 @@ pub fn check_inputs(
         None => files.routes.clone(),
     };
     routes.extend(files.additional.iter().cloned());
-    Ok(check_routes(&routes)? || files.ssm_option)
+    Ok((positions, check_routes(&routes)? || files.ssm_option))
 }

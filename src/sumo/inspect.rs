@@ -3,9 +3,11 @@
 //! A merge is a lane that ends (no connection leaves it) beside a lane of the same edge that
 //! goes on: the acceleration lane, and the target lane to its left. The ramp lanes are the
 //! acceleration lane and the lanes leading into it, followed back through the connections; the
-//! target lanes are the target lane and the lanes it continues from and into.
+//! target lanes are the target lane and the lanes it continues from and into. Positions are
+//! along the lanes ([`LanePositions`]), from 0 at the start of the first target lane.
 
-use crate::sumo::inputs::{InputError, shape_xs, with_network};
+use crate::sumo::LanePositions;
+use crate::sumo::inputs::{InputError, with_network};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -18,20 +20,18 @@ pub struct Merge {
     pub target_lanes: Vec<String>,
     /// The target lane beside the acceleration lane.
     pub target_lane: String,
-    /// Network x where the acceleration lane begins (m).
+    /// Position where the acceleration lane begins (m).
     pub lane_start: f64,
-    /// Network x where the acceleration lane ends (m).
+    /// Position where the acceleration lane ends (m).
     pub lane_end: f64,
-    /// Network x where the first ramp lane begins (m).
+    /// Position where the first ramp lane begins (m).
     pub ramp_start: f64,
 }
 
-/// A lane: its edge, index and the x of its shape's ends.
+/// A lane: its edge and index.
 struct Lane {
     edge: String,
     index: u32,
-    start: f64,
-    end: f64,
 }
 
 /// At most this many lanes are followed in each direction.
@@ -49,12 +49,9 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
             continue;
         };
         for lane in edge.children().filter(|n| n.has_tag_name("lane")) {
-            let xs = shape_xs(lane);
-            let (Some(lane_id), Some(index), Some(&start), Some(&end)) = (
+            let (Some(lane_id), Some(index)) = (
                 lane.attribute("id"),
                 lane.attribute("index").and_then(|i| i.parse().ok()),
-                xs.first(),
-                xs.last(),
             ) else {
                 continue;
             };
@@ -63,8 +60,6 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
                 Lane {
                     edge: id.to_owned(),
                     index,
-                    start,
-                    end,
                 },
             );
         }
@@ -110,13 +105,20 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         let ramp_lanes = chain(id, false);
         let mut target_lanes = chain(&left, false);
         target_lanes.extend(chain(&left, true).into_iter().skip(1));
-        let ramp_start = lanes[&ramp_lanes[0]].start;
+        let Ok(positions) = LanePositions::of_network(doc, &ramp_lanes, &target_lanes, 0.0) else {
+            continue;
+        };
+        let (Some((lane_start, lane_end)), Some((ramp_start, _))) =
+            (positions.span(id), positions.span(&ramp_lanes[0]))
+        else {
+            continue;
+        };
         merges.push(Merge {
             ramp_lanes,
             target_lanes,
             target_lane: left,
-            lane_start: lane.start,
-            lane_end: lane.end,
+            lane_start,
+            lane_end,
             ramp_start,
         });
     }
@@ -139,15 +141,17 @@ pub fn proposal(merge: &Merge, net: &Path) -> String {
     let control_from = (x_c - 120.0).max(merge.ramp_start);
     format!(
         "# merge.toml proposed by `mpgdrive net inspect {net}`: check it, then save it next to the\n\
-         # .sumocfg (cosim and batch read it from there, or from --merge). Units: m. x is the network\n\
-         # x coordinate of a vehicle's centre, so the freeway must run along +x.\n\
-         conflict_point = {x_c:.1}          # 20 m before the end of the acceleration lane `{accel}` (x = {end:.1}):\n\
+         # .sumocfg (cosim and batch read it from there, or from --merge). Units: m. Positions are\n\
+         # distances driven along the lanes, from 0 at the start of the first target lane; a ramp\n\
+         # vehicle's position is the target-lane position it reaches by driving on.\n\
+         target_start = 0.0               # the position of the start of target_lanes' first lane\n\
+         conflict_point = {x_c:.1}          # 20 m before the end of the acceleration lane `{accel}` (at {end:.1}):\n\
          #                                  ramp vehicles join the target lane here; SUMO stops them at the end\n\
          control_from = {control_from:.1}            # egos are picked up here, 120 m before x_c at most (training starts them\n\
          #                                  40-120 m before)\n\
          release_after = 50.0             # a merged ego is released 50 m past x_c\n\
-         ramp_lanes = {ramp}\n\
-         target_lanes = {target}\n\
+         ramp_lanes = {ramp}   # in driving order, the acceleration lane last\n\
+         target_lanes = {target}   # in driving order\n\
          controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
          players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n",
         net = net.display(),

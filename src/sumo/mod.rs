@@ -16,6 +16,7 @@ pub mod handle;
 pub mod inputs;
 pub mod inspect;
 pub mod kind;
+pub mod positions;
 
 #[cfg(feature = "sumo")]
 pub use controller::{ControlModes, Controller, EgoRecord};
@@ -23,6 +24,7 @@ pub use geometry::MergeGeometry;
 #[cfg(feature = "sumo")]
 pub use handle::{Backend, Collision, NewVehicle, Sumo, VehicleState};
 pub use kind::ControllerKind;
+pub use positions::LanePositions;
 
 /// Errors of the SUMO layer.
 #[derive(Debug, thiserror::Error)]

@@ -1,0 +1,231 @@
+//! Positions along the merge's lanes: the one coordinate every rule of the co-simulation reads
+//! (observation, feasibility projection, merge gate, pick-up, release, time-space diagrams).
+//!
+//! A position is a distance driven along the lanes, so a curved ramp, a rotated network or a
+//! freeway that bends measure what the internal simulator measures. The target lanes, in
+//! driving order, are laid end to end (with the junction lanes between them) from
+//! `target_start` at the start of the first; the acceleration lane (the last ramp lane) runs
+//! beside the target lane of its edge, at the same positions; the ramp lanes before it are
+//! laid back from its start, so a ramp vehicle's distance to the conflict point is the
+//! distance it has to drive. A vehicle's position is its lane's start plus its lane position
+//! (SUMO's `getLanePosition`, which runs along the lane's `length`).
+
+use std::collections::HashMap;
+
+/// A lane as the network gives it.
+struct NetLane {
+    length: f64,
+}
+
+/// Where each ramp, target and junction lane between them starts, and how lane positions
+/// scale onto the road (1 except on an acceleration lane whose length differs from its
+/// neighbour's).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LanePositions {
+    lanes: HashMap<String, Placed>,
+}
+
+/// One lane on the road.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Placed {
+    start: f64,
+    scale: f64,
+    length: f64,
+}
+
+/// How many junction lanes a connection may pass through.
+const MAX_VIA: usize = 8;
+
+impl LanePositions {
+    /// The positions of `ramp_lanes` and `target_lanes` (each in driving order) in the
+    /// network `doc`, the first target lane starting at `target_start`. The message says what
+    /// does not fit: a lane that does not lead to the next one listed, or an acceleration lane
+    /// that is not beside a target lane.
+    pub fn of_network(
+        doc: &roxmltree::Document,
+        ramp_lanes: &[String],
+        target_lanes: &[String],
+        target_start: f64,
+    ) -> Result<Self, String> {
+        let net = lanes_of(doc);
+        let links = connections_of(doc);
+        let length = |id: &str| {
+            net.get(id)
+                .map(|l| l.length)
+                .ok_or_else(|| format!("lane `{id}` is not in the network"))
+        };
+        let Some(accel) = ramp_lanes.last() else {
+            return Err("ramp_lanes is empty".into());
+        };
+        let beside = crate::sumo::geometry::split_lane_id(accel)
+            .map(|(edge, index)| format!("{edge}_{}", index + 1))
+            .filter(|l| target_lanes.contains(l))
+            .ok_or_else(|| {
+                format!(
+                    "the last ramp lane `{accel}` must be an acceleration lane: the lane to its left on \
+                     the same edge must be one of target_lanes"
+                )
+            })?;
+        let mut lanes = HashMap::new();
+        let mut place = |lane: &str, start: f64, scale: f64| -> Result<f64, String> {
+            let length = length(lane)?;
+            lanes.insert(lane.to_owned(), Placed { start, scale, length });
+            Ok(length)
+        };
+        let mut pos = target_start;
+        let mut start = pos;
+        for (k, lane) in target_lanes.iter().enumerate() {
+            if k > 0 {
+                for via in via_lanes(&links, &target_lanes[k - 1], lane, "target_lanes")? {
+                    pos += place(&via, pos, 1.0)?;
+                }
+            }
+            if *lane == beside {
+                start = pos;
+            }
+            pos += place(lane, pos, 1.0)?;
+        }
+        place(accel, start, length(&beside)? / length(accel)?)?;
+        for k in (0..ramp_lanes.len() - 1).rev() {
+            let vias = via_lanes(&links, &ramp_lanes[k], &ramp_lanes[k + 1], "ramp_lanes")?;
+            for via in vias.iter().rev() {
+                start -= length(via)?;
+                place(via, start, 1.0)?;
+            }
+            start -= length(&ramp_lanes[k])?;
+            place(&ramp_lanes[k], start, 1.0)?;
+        }
+        Ok(LanePositions { lanes })
+    }
+
+    /// The position of lane position `lane_pos` on `lane` (none for a lane off the merge).
+    pub fn position(&self, lane: &str, lane_pos: f64) -> Option<f64> {
+        self.lanes.get(lane).map(|p| p.start + p.scale * lane_pos)
+    }
+
+    /// The positions `lane` covers, from its start to its end (m).
+    pub fn span(&self, lane: &str) -> Option<(f64, f64)> {
+        self.lanes
+            .get(lane)
+            .map(|p| (p.start, p.start + p.scale * p.length))
+    }
+}
+
+/// Every lane of the network, internal ones included.
+fn lanes_of(doc: &roxmltree::Document) -> HashMap<String, NetLane> {
+    doc.descendants()
+        .filter(|n| n.has_tag_name("lane"))
+        .filter_map(|lane| {
+            let length = lane.attribute("length")?.parse().ok()?;
+            Some((lane.attribute("id")?.to_owned(), NetLane { length }))
+        })
+        .collect()
+}
+
+/// A connection between two lanes, and the junction lane it passes through first.
+struct Link {
+    from: String,
+    to: String,
+    via: Option<String>,
+}
+
+fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
+    doc.root_element()
+        .children()
+        .filter(|n| n.has_tag_name("connection"))
+        .filter_map(|n| {
+            Some(Link {
+                from: format!("{}_{}", n.attribute("from")?, n.attribute("fromLane")?),
+                to: format!("{}_{}", n.attribute("to")?, n.attribute("toLane")?),
+                via: n.attribute("via").map(str::to_owned),
+            })
+        })
+        .collect()
+}
+
+/// The junction lanes a vehicle passes from `from` to `to`, in order (none without internal
+/// links); an error when `from` does not lead to `to`.
+fn via_lanes(links: &[Link], from: &str, to: &str, key: &str) -> Result<Vec<String>, String> {
+    let mut vias = Vec::new();
+    let mut at = from.to_owned();
+    while vias.len() <= MAX_VIA {
+        let Some(link) = links.iter().find(|l| l.from == at && l.to == to) else {
+            break;
+        };
+        match &link.via {
+            Some(via) => {
+                vias.push(via.clone());
+                at = via.clone();
+            }
+            None => return Ok(vias),
+        }
+    }
+    Err(format!(
+        "{key}: `{from}` does not lead to `{to}` in the network (list the lanes in driving order, \
+         each connected to the next)"
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ramp `r_0` (50 m) into acceleration lane `m_0` (40 m, beside `m_1`) through a 5 m
+    /// junction lane, and target lanes `a_0` (100 m) -> `m_1` (40 m) -> `b_0` (60 m), the
+    /// first through a 3 m junction lane.
+    const NET: &str = r#"<net>
+        <edge id=":j1" function="internal"><lane id=":j1_0" index="0" length="3.00"/></edge>
+        <edge id=":j2" function="internal"><lane id=":j2_0" index="0" length="5.00"/></edge>
+        <edge id="a"><lane id="a_0" index="0" length="100.00"/></edge>
+        <edge id="r"><lane id="r_0" index="0" length="50.00"/></edge>
+        <edge id="m"><lane id="m_0" index="0" length="40.00"/><lane id="m_1" index="1" length="40.00"/></edge>
+        <edge id="b"><lane id="b_0" index="0" length="60.00"/></edge>
+        <connection from="a" to="m" fromLane="0" toLane="1" via=":j1_0"/>
+        <connection from=":j1" to="m" fromLane="0" toLane="1"/>
+        <connection from="r" to="m" fromLane="0" toLane="0" via=":j2_0"/>
+        <connection from=":j2" to="m" fromLane="0" toLane="0"/>
+        <connection from="m" to="b" fromLane="1" toLane="0"/>
+    </net>"#;
+
+    fn lanes(ids: &[&str]) -> Vec<String> {
+        ids.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn lanes_are_laid_end_to_end_along_the_road() {
+        let doc = roxmltree::Document::parse(NET).unwrap();
+        let p = LanePositions::of_network(
+            &doc,
+            &lanes(&["r_0", "m_0"]),
+            &lanes(&["a_0", "m_1", "b_0"]),
+            -10.0,
+        )
+        .unwrap();
+        // Target: a_0 from -10, the junction 90..93, m_1 93..133, b_0 from 133.
+        assert_eq!(p.position("a_0", 0.0), Some(-10.0));
+        assert_eq!(p.position(":j1_0", 1.0), Some(91.0));
+        assert_eq!(p.position("m_1", 7.0), Some(100.0));
+        assert_eq!(p.position("b_0", 2.5), Some(135.5));
+        // The acceleration lane runs beside m_1; the ramp ends 5 m (the junction) before it.
+        assert_eq!(p.position("m_0", 7.0), Some(100.0));
+        assert_eq!(p.position(":j2_0", 0.0), Some(88.0));
+        assert_eq!(p.position("r_0", 50.0), Some(88.0));
+        assert_eq!(p.span("r_0"), Some((38.0, 88.0)));
+        assert_eq!(p.span("m_0"), Some((93.0, 133.0)));
+        assert_eq!(p.position("elsewhere_0", 1.0), None);
+    }
+
+    #[test]
+    fn lanes_out_of_driving_order_or_a_ramp_beside_no_target_lane_are_refused() {
+        let doc = roxmltree::Document::parse(NET).unwrap();
+        let err = LanePositions::of_network(&doc, &lanes(&["r_0", "m_0"]), &lanes(&["m_1", "a_0"]), 0.0)
+            .unwrap_err();
+        assert!(err.contains("`m_1` does not lead to `a_0`"), "{err}");
+        let err = LanePositions::of_network(&doc, &lanes(&["m_0", "r_0"]), &lanes(&["a_0", "m_1"]), 0.0)
+            .unwrap_err();
+        assert!(
+            err.contains("last ramp lane `r_0` must be an acceleration lane"),
+            "{err}"
+        );
+    }
+}
