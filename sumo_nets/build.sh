@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Regenerates the .net.xml files of sumo_nets/ from their plain XML sources (make nets).
-# The networks are straight along +x with zero-radius junctions and no internal links, so a
-# vehicle's network x is its distance along the road (as in the internal simulator) also
-# across junctions; --offset.disable-normalization keeps the coordinates of the sources.
+# i80_merge and single_lane_merge are straight along +x with zero-radius junctions and no
+# internal links, so a vehicle's network x is its distance along the road (as in the internal
+# simulator; tests/cosim.rs compares the two); curved_ramp_merge keeps netconvert's defaults
+# (junction shapes and internal lanes), as a user's network would. mpgdrive measures positions
+# along the lanes in all three. --offset.disable-normalization keeps the sources' coordinates.
 set -euo pipefail
 cd "$(dirname "$0")"
 export SUMO_HOME="${SUMO_HOME:-/usr/share/sumo}"
@@ -15,3 +17,6 @@ build() { # dir prefix
 }
 build single_lane_merge merge
 build i80_merge i80
+(cd curved_ramp_merge && netconvert --node-files curved.nod.xml --edge-files curved.edg.xml \
+    --connection-files curved.con.xml --output-file curved.net.xml --no-turnarounds true \
+    --offset.disable-normalization true --output.street-names false --no-warnings true)

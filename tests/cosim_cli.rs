@@ -223,6 +223,14 @@ fn a_bad_configuration_or_a_conflict_point_off_the_network_writes_nothing() {
         .replace("conflict_point = 180.0", "conflict_point = 99999.0");
     assert!(far.contains("99999"));
     std::fs::write(dir.join("far.toml"), far).unwrap();
+    let reversed = std::fs::read_to_string("sumo_nets/single_lane_merge/merge.toml")
+        .unwrap()
+        .replace(
+            "[\"main_0\", \"merge_1\", \"out_0\"]",
+            "[\"out_0\", \"merge_1\", \"main_0\"]",
+        );
+    assert!(reversed.contains("\"out_0\", \"merge_1\""));
+    std::fs::write(dir.join("reversed.toml"), reversed).unwrap();
     let run = |cfg: &Path, merge: &str, out: &str| {
         bin()
             .args(["cosim", "--controllers", "sumo", "--end", "5", "--sumocfg"])
@@ -244,9 +252,21 @@ fn a_bad_configuration_or_a_conflict_point_off_the_network_writes_nothing() {
     let far = dir.join("far.toml").display().to_string();
     assert_rejected(
         &run(Path::new(CFG), &far, "c"),
-        &["far.toml", "conflict_point 99999 m is not on the ramp_lanes"],
+        &[
+            "far.toml",
+            "conflict_point 99999 m is not on the acceleration lane",
+        ],
     );
-    for out in ["a", "b", "c"] {
+    let reversed = dir.join("reversed.toml").display().to_string();
+    assert_rejected(
+        &run(Path::new(CFG), &reversed, "d"),
+        &[
+            "reversed.toml",
+            "`out_0` does not lead to `merge_1`",
+            "driving order",
+        ],
+    );
+    for out in ["a", "b", "c", "d"] {
         assert!(!dir.join(out).exists(), "{out} written");
     }
 }

@@ -6,7 +6,7 @@ mod common;
 use common::{bin, fresh_dir};
 use mpgdrive::sumo::MergeGeometry;
 use mpgdrive::sumo::inputs::check_geometry;
-use mpgdrive::sumo::inspect::{BEFORE_END, find_merges, proposal};
+use mpgdrive::sumo::inspect::{BEFORE_END, PICK_UP_BEFORE_LANE, find_merges, proposal};
 use std::path::Path;
 
 #[test]
@@ -23,6 +23,12 @@ fn the_bundled_merges_are_found_and_the_proposals_fit_their_networks() {
             "sumo_nets/single_lane_merge/merge.toml",
             400.0,
         ),
+        // Along the lanes: fw_in (398.5 m), the 3 m junction lane, accel (114.5 m).
+        (
+            "sumo_nets/curved_ramp_merge/curved.net.xml",
+            "sumo_nets/curved_ramp_merge/merge.toml",
+            516.0,
+        ),
     ] {
         let net = Path::new(env!("CARGO_MANIFEST_DIR")).join(net);
         let bundled = MergeGeometry::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join(merge)).unwrap();
@@ -31,12 +37,33 @@ fn the_bundled_merges_are_found_and_the_proposals_fit_their_networks() {
         let m = &merges[0];
         assert_eq!(m.ramp_lanes, bundled.ramp_lanes);
         assert_eq!(m.target_lanes, bundled.target_lanes);
-        assert_eq!((m.target_lane.as_str(), m.lane_end), ("merge_1", lane_end));
+        let beside = bundled.merge_lane(bundled.ramp_lanes.last().unwrap()).unwrap().0;
+        assert_eq!(m.target_lane, beside);
+        assert!(
+            (m.lane_end - lane_end).abs() < 1e-9,
+            "{} ends at {}",
+            m.target_lane,
+            m.lane_end
+        );
         let path = dir.join("proposed.toml");
         std::fs::write(&path, proposal(m, &net)).unwrap();
         let proposed = MergeGeometry::load(&path).unwrap();
-        assert_eq!(proposed.conflict_point, lane_end - BEFORE_END);
-        assert_eq!(proposed.control_from, lane_end - BEFORE_END - 120.0);
+        assert!((proposed.conflict_point - (lane_end - BEFORE_END)).abs() < 1e-9);
+        // 120 m before x_c, or 10 m before the acceleration lane when that is earlier (the
+        // curved network's 114.5 m lane).
+        let control_from = (lane_end - BEFORE_END - 120.0).min(m.lane_start - PICK_UP_BEFORE_LANE);
+        assert!(
+            (proposed.control_from - control_from).abs() < 0.06,
+            "{}",
+            proposed.control_from
+        );
+        // The bundled merge.toml of the curved network is the proposal.
+        if bundled.target_start == 0.0 {
+            assert_eq!(
+                (bundled.conflict_point, bundled.control_from),
+                (proposed.conflict_point, proposed.control_from)
+            );
+        }
         check_geometry(&proposed, &path, &net).unwrap();
     }
 }

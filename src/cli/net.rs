@@ -59,7 +59,7 @@ pub fn run(args: NetArgs) -> Result<ExitCode> {
         None => {
             for (k, m) in merges.iter().enumerate() {
                 print(&format!(
-                    "# Merge {} of {}: `{}` ends at x = {:.1} m beside `{}`\n{}",
+                    "# Merge {} of {}: `{}` ends at position {:.1} m (along the lanes) beside `{}`\n{}",
                     k + 1,
                     merges.len(),
                     m.ramp_lanes.last().map_or("", String::as_str),

@@ -134,11 +134,19 @@ fn quoted(list: &[String]) -> String {
 /// centre never reaches the very end: SUMO stops it there), within the lane.
 pub const BEFORE_END: f64 = 20.0;
 
+/// Egos are picked up at least this far before the acceleration lane begins (m).
+pub const PICK_UP_BEFORE_LANE: f64 = 10.0;
+
 /// A commented `merge.toml` for `merge` of the network `net`: the conflict point
-/// [`BEFORE_END`] before the end of the acceleration lane, egos picked up 120 m before it.
+/// [`BEFORE_END`] before the end of the acceleration lane, egos picked up 120 m before it, or
+/// [`PICK_UP_BEFORE_LANE`] before the acceleration lane if that is earlier.
 pub fn proposal(merge: &Merge, net: &Path) -> String {
     let x_c = (merge.lane_end - BEFORE_END).max(0.5 * (merge.lane_start + merge.lane_end));
-    let control_from = (x_c - 120.0).max(merge.ramp_start);
+    // Before the acceleration lane: SUMO's drivers change lanes as soon as they reach it, and
+    // a ramp vehicle that changed before pick-up is never an ego.
+    let control_from = (x_c - 120.0)
+        .min(merge.lane_start - PICK_UP_BEFORE_LANE)
+        .max(merge.ramp_start);
     format!(
         "# merge.toml proposed by `mpgdrive net inspect {net}`: check it, then save it next to the\n\
          # .sumocfg (cosim and batch read it from there, or from --merge). Units: m. Positions are\n\
@@ -147,8 +155,9 @@ pub fn proposal(merge: &Merge, net: &Path) -> String {
          target_start = 0.0               # the position of the start of target_lanes' first lane\n\
          conflict_point = {x_c:.1}          # 20 m before the end of the acceleration lane `{accel}` (at {end:.1}):\n\
          #                                  ramp vehicles join the target lane here; SUMO stops them at the end\n\
-         control_from = {control_from:.1}            # egos are picked up here, 120 m before x_c at most (training starts them\n\
-         #                                  40-120 m before)\n\
+         control_from = {control_from:.1}            # egos are picked up here: 120 m before x_c (training starts them 40-120 m\n\
+         #                                  before), or on the ramp 10 m before the acceleration lane if that is\n\
+         #                                  earlier (SUMO's drivers change lanes as soon as they reach it)\n\
          release_after = 50.0             # a merged ego is released 50 m past x_c\n\
          ramp_lanes = {ramp}   # in driving order, the acceleration lane last\n\
          target_lanes = {target}   # in driving order\n\
