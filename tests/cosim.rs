@@ -174,7 +174,8 @@ fn sumo_and_the_internal_simulator_agree_on_the_ego_trajectory() {
     // x_c = 180 m until the controller releases the ego 50 m later; from then on SUMO drives it.
     let _turn = SUMO.lock().unwrap_or_else(|e| e.into_inner());
     let config = paper();
-    let geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
+    let mut geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
+    geometry.merge_from = None; // the internal simulator's merge, at x_c
     let release = geometry.conflict_point + geometry.release_after;
     let steps = 250; // 25 s
     for scene in sample_scenes(&config, purpose_seed(0, Purpose::Test), 0, 3) {
@@ -224,6 +225,7 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
     let mut geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
     geometry.control_from = -1000.0;
     geometry.release_after = 1000.0;
+    geometry.merge_from = None;
     let steps = 100;
     // The first two episodes that stay on the network and run 10 s without a collision (an
     // internal episode ends at its first one).

@@ -6,7 +6,7 @@ mod common;
 use common::{bin, fresh_dir};
 use mpgdrive::sumo::MergeGeometry;
 use mpgdrive::sumo::inputs::check_geometry;
-use mpgdrive::sumo::inspect::{BEFORE_END, PICK_UP_BEFORE_LANE, find_merges, proposal};
+use mpgdrive::sumo::inspect::{BEFORE_END, LANE_MARGIN, find_merges, proposal};
 use std::path::Path;
 
 #[test]
@@ -51,7 +51,7 @@ fn the_bundled_merges_are_found_and_the_proposals_fit_their_networks() {
         assert!((proposed.conflict_point - (lane_end - BEFORE_END)).abs() < 1e-9);
         // 120 m before x_c, or 10 m before the acceleration lane when that is earlier (the
         // curved network's 114.5 m lane).
-        let control_from = (lane_end - BEFORE_END - 120.0).min(m.lane_start - PICK_UP_BEFORE_LANE);
+        let control_from = (lane_end - BEFORE_END - 120.0).min(m.lane_start - LANE_MARGIN);
         assert!(
             (proposed.control_from - control_from).abs() < 0.06,
             "{}",
@@ -60,8 +60,12 @@ fn the_bundled_merges_are_found_and_the_proposals_fit_their_networks() {
         // The bundled merge.toml of the curved network is the proposal.
         if bundled.target_start == 0.0 {
             assert_eq!(
-                (bundled.conflict_point, bundled.control_from),
-                (proposed.conflict_point, proposed.control_from)
+                (bundled.conflict_point, bundled.control_from, bundled.merge_from),
+                (
+                    proposed.conflict_point,
+                    proposed.control_from,
+                    proposed.merge_from
+                )
             );
         }
         check_geometry(&proposed, &path, &net).unwrap();

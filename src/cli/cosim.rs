@@ -50,6 +50,11 @@ pub struct CosimArgs {
     /// collide at once; 0: it happens at the conflict point whatever is there).
     #[arg(long, default_value_t = 256)]
     lane_change_mode: i32,
+    /// SUMO lane-change mode of the target-lane players the policy drives (1621, SUMO's
+    /// default: they change lanes as SUMO's drivers do, leaving the game when they leave the
+    /// target lane; 0: they stay in it, as in the internal simulator).
+    #[arg(long, default_value_t = 1621)]
+    player_lane_change_mode: i32,
     /// Watch in sumo-gui (through libtraci).
     #[arg(long, conflicts_with = "attach")]
     gui: bool,
@@ -182,6 +187,7 @@ mod with_sumo {
             modes: ControlModes {
                 speed: args.speed_mode,
                 lane_change: args.lane_change_mode,
+                player_lane_change: args.player_lane_change_mode,
             },
             launch: match (args.gui, args.attach) {
                 (true, _) => Launch::Gui,
@@ -276,10 +282,12 @@ mod with_sumo {
     /// The shields of the controlled vehicles, as one sentence.
     fn shields_line(s: &Shields) -> String {
         format!(
-            "Shields of the vehicles the policies drive: merge gate {}, SUMO speed mode {}, lane-change mode {}.",
+            "Shields of the vehicles the policies drive: merge gate {}, SUMO speed mode {}, lane-change mode {} \
+             (target-lane players: {}).",
             if s.merge_gate { "on" } else { "off" },
             s.speed_mode,
-            s.lane_change_mode
+            s.lane_change_mode,
+            s.player_lane_change_mode
         )
     }
 

@@ -60,6 +60,7 @@ use crate::sumo::geometry::{MergeGeometry, PlayerControl};
 use crate::sumo::kind::ControllerKind;
 use crate::sumo::positions::LanePositions;
 use crate::sumo::{Sumo, SumoError};
+use crate::world::merge_gate::entry_is_safe;
 use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
 use crate::world::state::{Scene, Vehicle};
@@ -78,20 +79,29 @@ pub const SUMO_LANE_CHANGE_MODE: i32 = 1621;
 pub struct ControlModes {
     /// Speed mode bits (1 safe speed, 2 max accel, 4 max decel, 8 right of way, 16 red light).
     pub speed: i32,
-    /// Lane-change mode bits (256: a TraCI lane change avoids immediate collisions).
+    /// Lane-change mode bits of the ramp vehicles it drives (256: a TraCI lane change avoids
+    /// immediate collisions).
     pub lane_change: i32,
+    /// Lane-change mode bits of the target-lane players it drives (1621, SUMO's default: they
+    /// keep SUMO's own lane changes, so a player may move out of the target lane as SUMO's
+    /// drivers do, and the policy drives it no longer; 0: none, the internal simulator's one
+    /// lane).
+    pub player_lane_change: i32,
 }
 
 impl ControlModes {
-    /// The default: SUMO's safe speed and collision-free requested lane changes.
+    /// The default: SUMO's safe speed, collision-free requested lane changes, and SUMO's own
+    /// lane changes for target-lane players.
     pub const SAFE: ControlModes = ControlModes {
         speed: 25,
         lane_change: 256,
+        player_lane_change: SUMO_LANE_CHANGE_MODE,
     };
     /// No SUMO checks: every action and lane change applies as in the internal simulator.
     pub const EXACT: ControlModes = ControlModes {
         speed: 0,
         lane_change: 0,
+        player_lane_change: 0,
     };
 }
 
@@ -317,7 +327,11 @@ impl Controller {
             let c = &cars[car];
             if self.controlled.insert(c.id.clone()) {
                 sumo.set_speed_mode(&c.id, self.modes.speed)?;
-                sumo.set_lane_change_mode(&c.id, self.modes.lane_change)?;
+                let mode = match c.ramp_lane {
+                    Some(_) => self.modes.lane_change,
+                    None => self.modes.player_lane_change,
+                };
+                sumo.set_lane_change_mode(&c.id, mode)?;
                 if self.colour {
                     let ego = self.egos.contains_key(&c.id);
                     sumo.set_color(&c.id, if ego { EGO_COLOUR } else { PLAYER_COLOUR })?;
@@ -330,11 +344,7 @@ impl Controller {
             sumo.set_speed(&c.id, v)?;
             self.commanded.insert(c.id.clone(), v);
             applied.insert(c.id.clone(), accel);
-            if let Some(lane) = c
-                .ramp_lane
-                .as_ref()
-                .filter(|_| c.x >= self.rules.conflict_point())
-            {
+            if let Some(lane) = c.ramp_lane.as_ref().filter(|_| self.merges_now(&cars, car)) {
                 if let Some((_, index)) = self.geometry.merge_lane(lane) {
                     sumo.change_lane(&c.id, index, 1.0)?;
                     requested.insert(c.id.clone());
@@ -366,6 +376,22 @@ impl Controller {
         self.timing.steps += 1;
         self.timing.total_us += started.elapsed().as_secs_f64() * 1e6;
         Ok(())
+    }
+
+    /// Whether ramp vehicle `car`, driven by the policy, changes to the target lane now: at
+    /// the conflict point, or from `merge_from` on where the merge gate's entry check finds
+    /// the gap safe.
+    fn merges_now(&self, cars: &[Car], car: usize) -> bool {
+        let x = cars[car].x;
+        x >= self.rules.conflict_point()
+            || self.geometry.merge_from.is_some_and(|from| {
+                x >= from
+                    && entry_is_safe(
+                        &ego_and_target_lane(cars, car, self.config.scenario.lane_width),
+                        0,
+                        &self.rules.gate,
+                    )
+            })
     }
 
     /// Adds this step's vehicles and new collisions to the time-space record.
@@ -732,7 +758,7 @@ impl Game {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::merge_gate::{GateRules, entry_is_safe};
+    use crate::world::merge_gate::GateRules;
 
     fn car(id: &str, x: f64, v: f64, on_ramp: bool) -> Car {
         Car {
@@ -780,6 +806,7 @@ mod tests {
             ramp_lanes: vec!["merge_0".into()],
             target_lanes: vec!["merge_1".into()],
             target_start: 0.0,
+            merge_from: None,
             controllable_types: vec!["ctrl".into()],
             players: PlayerControl::All,
         };
@@ -873,6 +900,33 @@ mod tests {
             }
         });
         net
+    }
+
+    #[test]
+    fn egos_merge_at_the_first_safe_gap_from_merge_from_and_at_x_c_at_the_latest() {
+        let mut c = paper_controller();
+        // Without merge_from: at x_c only, as the internal simulator.
+        let alone = [car("ego", 150.0, 12.0, true)];
+        assert!(!c.merges_now(&alone, 0));
+        assert!(c.merges_now(&[car("ego", 180.0, 12.0, true)], 0));
+        c.geometry.merge_from = Some(138.0);
+        // An empty target lane from 138 m on: now, not before.
+        assert!(c.merges_now(&alone, 0));
+        assert!(!c.merges_now(&[car("ego", 137.9, 12.0, true)], 0));
+        // A car 5 m behind at the same speed: the gap is below the 7 m clearance (length 5 m
+        // + safety gap 2 m), so not now; 30 m behind at the same speed it is safe. A ramp car
+        // beside does not count.
+        let close = [car("ego", 150.0, 12.0, true), car("lane", 145.0, 12.0, false)];
+        assert!(!c.merges_now(&close, 0));
+        let far = [
+            car("ego", 150.0, 12.0, true),
+            car("lane", 120.0, 12.0, false),
+            car("ramp", 150.0, 12.0, true),
+        ];
+        assert!(c.merges_now(&far, 0));
+        // At x_c the merge happens whatever is there.
+        let at_x_c = [car("ego", 180.0, 12.0, true), car("lane", 178.0, 12.0, false)];
+        assert!(c.merges_now(&at_x_c, 0));
     }
 
     #[test]

@@ -345,6 +345,7 @@ pub fn run_controller(
         merge_gate: config.sim.merge_gate,
         speed_mode: settings.modes.speed,
         lane_change_mode: settings.modes.lane_change,
+        player_lane_change_mode: settings.modes.player_lane_change,
     };
     Ok(run)
 }
@@ -376,6 +377,9 @@ pub struct Shields {
     /// SUMO lane-change mode of controlled vehicles (256: a merge waits while it would collide
     /// at once; 0: none).
     pub lane_change_mode: i32,
+    /// SUMO lane-change mode of controlled target-lane players (1621: SUMO's own lane
+    /// changes; 0: none).
+    pub player_lane_change_mode: i32,
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -31,6 +31,12 @@ pub struct MergeGeometry {
     pub control_from: f64,
     /// Control of a merged ego ends this far past the conflict point (m).
     pub release_after: f64,
+    /// From this position on (m; on the acceleration lane) a ramp vehicle the policy drives
+    /// changes to the target lane at the first gap the merge gate's entry check finds safe,
+    /// and at the conflict point at the latest. Unset: at the conflict point, as the internal
+    /// simulator merges.
+    #[serde(default)]
+    pub merge_from: Option<f64>,
     /// Lanes of the ramp, in driving order, the acceleration lane last (egos drive here before
     /// merging).
     pub ramp_lanes: Vec<String>,
@@ -61,6 +67,14 @@ impl MergeGeometry {
         finite("control_from", self.control_from)?;
         non_negative("release_after", self.release_after)?;
         finite("target_start", self.target_start)?;
+        if let Some(from) = self.merge_from {
+            finite("merge_from", from)?;
+            check(
+                "merge_from",
+                from <= self.conflict_point,
+                format!("{from} must not lie past conflict_point {}", self.conflict_point),
+            )?;
+        }
         check(
             "control_from",
             self.control_from < self.conflict_point,

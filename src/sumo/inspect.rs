@@ -134,19 +134,22 @@ fn quoted(list: &[String]) -> String {
 /// centre never reaches the very end: SUMO stops it there), within the lane.
 pub const BEFORE_END: f64 = 20.0;
 
-/// Egos are picked up at least this far before the acceleration lane begins (m).
-pub const PICK_UP_BEFORE_LANE: f64 = 10.0;
+/// Egos are picked up at least this far before the acceleration lane begins, and may merge
+/// from this far into it (m).
+pub const LANE_MARGIN: f64 = 10.0;
 
 /// A commented `merge.toml` for `merge` of the network `net`: the conflict point
 /// [`BEFORE_END`] before the end of the acceleration lane, egos picked up 120 m before it, or
-/// [`PICK_UP_BEFORE_LANE`] before the acceleration lane if that is earlier.
+/// [`LANE_MARGIN`] before the acceleration lane if that is earlier, and merging from
+/// [`LANE_MARGIN`] into it.
 pub fn proposal(merge: &Merge, net: &Path) -> String {
     let x_c = (merge.lane_end - BEFORE_END).max(0.5 * (merge.lane_start + merge.lane_end));
     // Before the acceleration lane: SUMO's drivers change lanes as soon as they reach it, and
     // a ramp vehicle that changed before pick-up is never an ego.
     let control_from = (x_c - 120.0)
-        .min(merge.lane_start - PICK_UP_BEFORE_LANE)
+        .min(merge.lane_start - LANE_MARGIN)
         .max(merge.ramp_start);
+    let merge_from = (merge.lane_start + LANE_MARGIN).min(x_c);
     format!(
         "# merge.toml proposed by `mpgdrive net inspect {net}`: check it, then save it next to the\n\
          # .sumocfg (cosim and batch read it from there, or from --merge). Units: m. Positions are\n\
@@ -159,6 +162,8 @@ pub fn proposal(merge: &Merge, net: &Path) -> String {
          #                                  before), or on the ramp 10 m before the acceleration lane if that is\n\
          #                                  earlier (SUMO's drivers change lanes as soon as they reach it)\n\
          release_after = 50.0             # a merged ego is released 50 m past x_c\n\
+         merge_from = {merge_from:.1}              # egos change to the target lane at the first safe gap from here on\n\
+         #                                  (10 m into the acceleration lane), as SUMO's drivers do; at x_c at the latest\n\
          ramp_lanes = {ramp}   # in driving order, the acceleration lane last\n\
          target_lanes = {target}   # in driving order\n\
          controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
