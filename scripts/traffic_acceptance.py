@@ -50,7 +50,8 @@ def main():
             scale, seed, mode = float(m.group(1)), int(m.group(2)), m.group(3)
             runs = {r["controller"]: r for r in json.loads((folder / "cosim.json").read_text())}
             sh = runs["mpg"]["shields"]
-            shields.add((sh["merge_gate"], sh["speed_mode"], sh["lane_change_mode"]))
+            shields.add((sh["merge_gate"], sh["speed_mode"], sh["lane_change_mode"],
+                         sh.get("player_lane_change_mode")))
             if mode == "mainline30":
                 beyond.append((scale, seed, all_time_loss(folder, "mpg"), all_time_loss(folder, "sumo")))
                 continue
@@ -94,8 +95,9 @@ def main():
                 print(f"| {seed} | {mpg:.2f} ({n_mpg} vehicles) | {sumo:.2f} ({n_sumo}) | {'yes' if mpg <= sumo else 'no'} |")
         print()
     print("## Shields of the mpg runs\n")
-    for gate, speed, lane in sorted(shields):
-        print(f"- merge gate {'on' if gate else 'off'}, SUMO speed mode {speed}, lane-change mode {lane}")
+    for gate, speed, lane, player_lane in sorted(shields, key=str):
+        players = "" if player_lane is None else f" (target-lane players {player_lane})"
+        print(f"- merge gate {'on' if gate else 'off'}, SUMO speed mode {speed}, lane-change mode {lane}{players}")
     print("\n## Verdict\n")
     if failed:
         print(f"{len(failed)} deployments miss the acceptance:\n")

@@ -54,6 +54,11 @@ pub struct ScenarioConfig {
     /// (`[traffic]`). Default `paper`.
     #[serde(default)]
     pub kind: ScenarioKind,
+    /// Ramp vehicles join the target lane at the first step the merge gate's entry check
+    /// finds safe within this distance before `x_c`, and at `x_c` at the latest (m; ours).
+    /// Default 0: at `x_c` only, as the paper.
+    #[serde(default)]
+    pub merge_zone: f64,
 }
 
 /// The world an episode starts in.
@@ -368,6 +373,7 @@ impl Config {
         let p = &self.sampling;
         positive("scenario.road_length", s.road_length)?;
         positive("scenario.lane_width", s.lane_width)?;
+        non_negative("scenario.merge_zone", s.merge_zone)?;
         finite("scenario.conflict_point", s.conflict_point)?;
         check(
             "scenario.conflict_point",

@@ -225,7 +225,8 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
     let mut geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
     geometry.control_from = -1000.0;
     geometry.release_after = 1000.0;
-    geometry.merge_from = None;
+    // Ramp vehicles merge early as the traffic world's do: from merge_zone before x_c.
+    geometry.merge_from = Some(geometry.conflict_point - config.scenario.merge_zone);
     let steps = 100;
     // The first two episodes that stay on the network and run 10 s without a collision (an
     // internal episode ends at its first one).

@@ -12,7 +12,7 @@ use std::process::ExitCode;
 pub struct CheckMpgArgs {
     #[command(flatten)]
     common: Common,
-    /// Theorem setting: feasibility projection and collision termination off (f64).
+    /// Theorem setting: feasibility projection, collision termination and early merges off (f64).
     #[arg(long)]
     exact: bool,
     /// Random joint policies K.

@@ -194,6 +194,7 @@ fn run_chunk(
     let mut neighbors = vec![Neighbors::default(); scenes.len() * n];
     let mut raw = vec![0.0; scenes.len() * n];
     let mut applied = vec![0.0; n];
+    let mut merging: Vec<bool> = Vec::with_capacity(n);
     let (mut order, mut scratch) = (Vec::new(), Vec::new());
     let mut rewards = StepRewards::default();
     let mut discount = 1.0;
@@ -234,8 +235,10 @@ fn run_chunk(
             for (i, stats) in out.vehicles.iter_mut().enumerate() {
                 stats.update_vehicle(scene, i, applied[i], dt);
             }
-            for (v, &u) in scene.vehicles.iter_mut().zip(&applied) {
-                *v = advance(v, u, &rules);
+            merging.clear();
+            merging.extend((0..n).map(|i| rules.merges_early(scene, i)));
+            for ((v, &u), &merges) in scene.vehicles.iter_mut().zip(&applied).zip(&merging) {
+                *v = advance(v, u, merges, &rules);
             }
             out.steps = step + 1;
             if out.ego_merged_at.is_none() && !scene.ego().on_ramp {

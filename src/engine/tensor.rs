@@ -322,7 +322,8 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Tensor) 
     (reward, potential)
 }
 
-/// Eq. (1) with zero steering, then the merge: a ramp player reaching `x_c` joins the target
+/// Eq. (1) with zero steering, then the merge: a ramp player reaching `x_c`, or merging early
+/// ([`WorldRules::merges_early`], on the scenes as they were this step), joins the target
 /// lane.
 pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Tensor) -> TensorBatch {
     let k = Kinematics {
@@ -333,7 +334,18 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Tensor) -> TensorBat
     };
     let next = bicycle_step(&k, u, &u.zeros_like(), rules.axles, rules.dt);
     let before_conflict = Num::gt(&next.x.full(rules.conflict_point()), &next.x);
-    let on_ramp = &batch.on_ramp * before_conflict;
+    let mut on_ramp = &batch.on_ramp * before_conflict;
+    if rules.road.merge_zone > 0.0 {
+        let stays: Vec<f64> = batch
+            .scenes()
+            .iter()
+            .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(!rules.merges_early(s, i)))))
+            .collect();
+        on_ramp = on_ramp
+            * Tensor::from_slice(&stays)
+                .reshape(batch.x.size())
+                .to_kind(batch.x.kind());
+    }
     batch.next(
         next.x,
         on_ramp.mul_c(-rules.road.lane_width),

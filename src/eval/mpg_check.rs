@@ -17,7 +17,8 @@
 //! `u = g_p tanh(k (v* - v) + A sin(w t + psi))`, with `k, v*, A, w, psi` drawn per player
 //! from the check's seed. With the feasibility projection or collision termination on, a
 //! player's transition depends on its neighbours and the identity no longer holds exactly: the
-//! check then reports the measured gap as a finding.
+//! check then reports the measured gap as a finding. So does an early merge
+//! (`scenario.merge_zone`), which waits for a safe gap; the exact setting turns it off too.
 //!
 //! In merge traffic (`scenario.kind = "traffic"`) the check runs on traffic episodes, several
 //! ramp vehicles and both streams, every vehicle a player (humans too: see [`check_mpg`]).
@@ -99,7 +100,7 @@ pub struct CheckSettings {
     pub states: usize,
     /// Seed of the policies and initial states.
     pub seed: u64,
-    /// Theorem setting: feasibility projection and collision termination off.
+    /// Theorem setting: feasibility projection, collision termination and early merges off.
     pub exact: bool,
     /// A relative gap above this flags the game as not an MPG.
     pub tolerance: f64,
@@ -185,10 +186,15 @@ pub fn check_mpg(
     let mut opts = RolloutOptions::from_config(config);
     opts.recording = Recording::Summary;
     opts.threads = settings.threads;
+    let mut config = config.clone();
     if settings.exact {
         opts.feasibility = false;
         opts.terminate_on_collision = false;
+        // An early merge waits for a safe gap: a lane change that depends on the neighbours,
+        // as the projection does.
+        config.scenario.merge_zone = 0.0;
     }
+    let config = &config;
     let n = config.n_agents();
     let mut scenes = sample_scenes(config, settings.seed, 0, settings.states);
     // In merge traffic every vehicle is a player here: a human's IDM reacts to its

@@ -143,7 +143,7 @@ pub fn replay(
         let ego = if human {
             recorded(ego_track, start + step as u32 + 1, ngsim)
         } else {
-            advance(scene.ego(), accel, &rules)
+            advance(scene.ego(), accel, false, &rules)
         };
         scene = scene_at(step + 1, ego);
         scenes.push(scene.clone());

@@ -15,6 +15,8 @@ pub struct Road {
     pub conflict_point: f64,
     /// Lane width (m).
     pub lane_width: f64,
+    /// How far before `x_c` a ramp vehicle may join the target lane at a safe gap (m).
+    pub merge_zone: f64,
 }
 
 impl Road {
@@ -23,7 +25,14 @@ impl Road {
         Road {
             conflict_point: config.scenario.conflict_point,
             lane_width: config.scenario.lane_width,
+            merge_zone: config.scenario.merge_zone,
         }
+    }
+
+    /// Whether a ramp vehicle at `x` is inside the merge zone, where it joins the target lane
+    /// at the first safe gap.
+    pub fn in_merge_zone(&self, x: f64) -> bool {
+        self.merge_zone > 0.0 && x >= self.conflict_point - self.merge_zone
     }
 
     /// Lateral position of a lane's centre line.

@@ -8,7 +8,8 @@
 use crate::config::Config;
 use crate::world::dynamics::Axles;
 use crate::world::geometry::Road;
-use crate::world::merge_gate::GateRules;
+use crate::world::merge_gate::{GateRules, entry_is_safe};
+use crate::world::state::Scene;
 
 /// Everything a step of the world reads from the configuration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -67,5 +68,52 @@ impl WorldRules {
     /// Conflict point `x_c` (m).
     pub fn conflict_point(&self) -> f64 {
         self.road.conflict_point
+    }
+
+    /// Whether ramp vehicle `i` of `scene` joins the target lane this step before reaching
+    /// `x_c`: it is inside the merge zone and the merge gate's entry check finds the gap safe
+    /// (a discrete decision, no gradient, as the gate's).
+    pub fn merges_early(&self, scene: &Scene, i: usize) -> bool {
+        let me = &scene.vehicles[i];
+        me.on_ramp && self.road.in_merge_zone(me.x) && entry_is_safe(scene, i, &self.gate)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::state::Vehicle;
+
+    fn at(x: f64, v: f64, on_ramp: bool) -> Vehicle {
+        Vehicle {
+            x,
+            y: if on_ramp { -3.66 } else { 0.0 },
+            v,
+            phi: 0.0,
+            on_ramp,
+        }
+    }
+
+    #[test]
+    fn ramp_vehicles_merge_early_only_inside_the_zone_and_at_a_safe_gap() {
+        let mut config =
+            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
+                .unwrap();
+        // The paper: at x_c only.
+        let alone = Scene::new(vec![at(160.0, 12.0, true)]);
+        assert!(!WorldRules::new(&config).merges_early(&alone, 0));
+        // A 40 m zone before x_c = 180 m: from 140 m on, with the target lane empty.
+        config.scenario.merge_zone = 40.0;
+        let rules = WorldRules::new(&config);
+        assert!(rules.merges_early(&alone, 0));
+        assert!(!rules.merges_early(&Scene::new(vec![at(139.0, 12.0, true)]), 0));
+        // A car 6 m behind at the same speed is inside the 7 m clearance (5 m length + 2 m
+        // gap): not now; 60 m behind at the same speed: now. A vehicle already in the target
+        // lane never merges.
+        let close = Scene::new(vec![at(160.0, 12.0, true), at(154.0, 12.0, false)]);
+        assert!(!rules.merges_early(&close, 0));
+        assert!(!rules.merges_early(&close, 1));
+        let far = Scene::new(vec![at(160.0, 12.0, true), at(100.0, 12.0, false)]);
+        assert!(rules.merges_early(&far, 0));
     }
 }

@@ -27,9 +27,10 @@ pub fn neighbor_of(scene: &Scene, who: Option<usize>, me: &Vehicle) -> Neighbor<
 }
 
 /// A vehicle after one step of eq. (1) with acceleration `u` and zero steering; a ramp
-/// vehicle whose `x` reaches `x_c` joins the target lane (its lateral position follows the
-/// lane geometry). One step for the rollout and the NGSIM replay.
-pub fn advance(v: &Vehicle, u: f64, rules: &WorldRules) -> Vehicle {
+/// vehicle whose `x` reaches `x_c`, or that `merges` early ([`WorldRules::merges_early`]),
+/// joins the target lane (its lateral position follows the lane geometry). One step for the
+/// rollout and the NGSIM replay.
+pub fn advance(v: &Vehicle, u: f64, merges: bool, rules: &WorldRules) -> Vehicle {
     let k = bicycle_step(
         &Kinematics {
             x: v.x,
@@ -42,7 +43,7 @@ pub fn advance(v: &Vehicle, u: f64, rules: &WorldRules) -> Vehicle {
         rules.axles,
         rules.dt,
     );
-    let on_ramp = rules.road.still_on_ramp(v.on_ramp, k.x);
+    let on_ramp = !merges && rules.road.still_on_ramp(v.on_ramp, k.x);
     Vehicle {
         x: k.x,
         y: rules.road.lane_y(on_ramp),
