@@ -341,10 +341,9 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Tensor) -> TensorBat
             .iter()
             .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(!rules.merges_early(s, i)))))
             .collect();
-        on_ramp = on_ramp
-            * Tensor::from_slice(&stays)
-                .reshape(batch.x.size())
-                .to_kind(batch.x.kind());
+        on_ramp *= Tensor::from_slice(&stays)
+            .reshape(batch.x.size())
+            .to_kind(batch.x.kind());
     }
     batch.next(
         next.x,
