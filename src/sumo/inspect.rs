@@ -8,6 +8,7 @@
 
 use crate::sumo::LanePositions;
 use crate::sumo::inputs::{InputError, with_network};
+use crate::sumo::positions::connections_of;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -66,15 +67,10 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
     }
     let lane_id = |edge: &str, index: &str| format!("{edge}_{index}");
     // Connections between lanes of normal edges: (from lane, to lane), in file order.
-    let links: Vec<(String, String)> = doc
-        .root_element()
-        .children()
-        .filter(|n| n.has_tag_name("connection"))
-        .filter_map(|n| {
-            let from = lane_id(n.attribute("from")?, n.attribute("fromLane")?);
-            let to = lane_id(n.attribute("to")?, n.attribute("toLane")?);
-            (lanes.contains_key(&from) && lanes.contains_key(&to)).then_some((from, to))
-        })
+    let links: Vec<(String, String)> = connections_of(doc)
+        .into_iter()
+        .filter(|l| lanes.contains_key(&l.from) && lanes.contains_key(&l.to))
+        .map(|l| (l.from, l.to))
         .collect();
     let continues = |lane: &str| links.iter().any(|(f, _)| f == lane);
     let chain = |first: &str, forward: bool| {

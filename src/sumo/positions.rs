@@ -123,13 +123,14 @@ fn lanes_of(doc: &roxmltree::Document) -> HashMap<String, NetLane> {
 }
 
 /// A connection between two lanes, and the junction lane it passes through first.
-struct Link {
-    from: String,
-    to: String,
+pub(crate) struct Link {
+    pub(crate) from: String,
+    pub(crate) to: String,
     via: Option<String>,
 }
 
-fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
+/// The network's connections, lane to lane, in file order.
+pub(crate) fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
     doc.root_element()
         .children()
         .filter(|n| n.has_tag_name("connection"))
