@@ -38,6 +38,24 @@ pub fn bin() -> std::process::Command {
     c
 }
 
+/// Runs `mpgdrive cosim --json` with `args`, the configuration `sumocfg` and `--out out`;
+/// asserts it succeeded and returns its runs (the JSON on stdout) and its stderr.
+pub fn cosim_json(args: &[&str], sumocfg: &Path, out: &Path) -> (serde_json::Value, String) {
+    let output = bin()
+        .arg("cosim")
+        .args(args)
+        .arg("--json")
+        .arg("--sumocfg")
+        .arg(sumocfg)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(output.status.success(), "{stderr}");
+    (serde_json::from_slice(&output.stdout).unwrap(), stderr)
+}
+
 /// A fresh, empty temporary directory for this test process.
 pub fn fresh_dir(name: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("mpgdrive-{}-{name}", std::process::id()));

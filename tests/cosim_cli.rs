@@ -393,29 +393,13 @@ fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
     assert!(!routes.contains("ssm"));
     std::fs::write(dir.join("r.rou.xml"), routes).unwrap();
     let cfg = plain_sumocfg(&dir, "plain.sumocfg", "r.rou.xml");
-    let out = bin()
-        .args([
-            "cosim",
-            "--controllers",
-            "sumo",
-            "--end",
-            "60",
-            "--json",
-            "--sumocfg",
-        ])
-        .arg(&cfg)
-        .arg("--out")
-        .arg(dir.join("out"))
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let (runs, stderr) =
+        common::cosim_json(&["--controllers", "sumo", "--end", "60"], &cfg, &dir.join("out"));
     assert!(
         stderr.contains("equips no vehicle with the SSM device"),
         "{stderr}"
     );
     let ssm = std::fs::read_to_string(dir.join("out/ssm-sumo.xml")).unwrap();
     assert!(roxmltree::Document::parse(&ssm).is_ok());
-    let runs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert!(!runs[0]["egos"].as_array().unwrap().is_empty());
 }

@@ -135,24 +135,11 @@ fn a_curved_ramp_network_runs_every_controller_with_the_proposed_merge_toml() {
     // SUMO's lane-change safety (mode 512) as the shield: this test is about the network.
     // Without it, on seeds 0-4, the unshielded policies had 0-2 controlled collisions in 54
     // egos per run, a human rear-ending an ego that had just merged (issue 15's gap).
-    let out = bin()
-        .args([
-            "cosim",
-            "--end",
-            "600",
-            "--json",
-            "--lane-change-mode",
-            "512",
-            "--sumocfg",
-        ])
-        .arg(dir.join("user.sumocfg"))
-        .arg("--out")
-        .arg(dir.join("out"))
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    let runs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (runs, _) = common::cosim_json(
+        &["--end", "600", "--lane-change-mode", "512"],
+        &dir.join("user.sumocfg"),
+        &dir.join("out"),
+    );
     let runs = runs.as_array().unwrap();
     assert_eq!(runs.len(), 3);
     for run in runs {
