@@ -46,7 +46,11 @@
 //! (other ramp vehicles queued ahead, vehicles cutting in from the next lane); the run counts
 //! the steps where SUMO did not apply a commanded speed. An ego whose centre reaches the
 //! conflict point is treated as merged, as in the internal simulator, and told to change to
-//! the target lane next to it. Control ends when the ego is
+//! the target lane next to it; with `merge.toml`'s `merge_from` it is told so earlier, at the
+//! first step from there on where the merge gate's entry check finds the gap safe (as the
+//! traffic world's `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
+//! ([`ControlModes::player_lane_change`]). Positions are along the lanes
+//! ([`LanePositions`]). Control ends when the ego is
 //! `release_after` metres past the conflict point on the target lane; SUMO then drives it
 //! again (speed mode 31, lane-change mode 1621, SUMO's defaults). Vehicles that leave,
 //! teleport or vanish are dropped from the games at once.
