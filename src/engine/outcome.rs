@@ -75,7 +75,7 @@ impl EgoStats {
     }
 }
 
-/// Everything recorded step by step (with [`Recording::Full`]); `n` players per row.
+/// Everything recorded step by step (with [`crate::engine::rollout::Recording::Full`]); `n` players per row.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Trajectory {
     /// States `s_0 .. s_steps`: `(steps + 1) * n` vehicles.
@@ -110,7 +110,7 @@ pub struct EpisodeOutcome {
     pub vehicles: Vec<EgoStats>,
     /// Final state.
     pub final_scene: Scene,
-    /// Step-by-step record ([`Recording::Full`] only).
+    /// Step-by-step record ([`crate::engine::rollout::Recording::Full`] only).
     pub trajectory: Option<Trajectory>,
 }
 

@@ -1,6 +1,6 @@
 //! The rollout over `[batch, agents]` tensors, differentiable for training.
 //!
-//! It runs the same generic equations as the scalar engine ([`crate::world::rollout`]): eq. (1),
+//! It runs the same generic equations as the scalar engine ([`crate::engine::rollout`]): eq. (1),
 //! the feasibility projection, IDM and the reward terms come from the same functions. The
 //! discrete parts carry no gradient and are computed once, on detached values, by the scalar
 //! code: who is whose neighbour ([`find_neighbors`]) and which boxes overlap
@@ -127,7 +127,7 @@ fn human_mask(scenes: &[Scene], kind: Kind) -> Tensor {
 }
 
 /// Neighbour indices as `[batch, agents]` tensors (a missing neighbour points at the player
-/// itself, with presence 0, as the scalar engine's [`crate::world::rollout::neighbor_of`] does).
+/// itself, with presence 0, as the scalar engine's [`crate::world::step::neighbor_of`] does).
 #[derive(Debug)]
 pub struct NeighborIndex {
     index: [Tensor; 4],

@@ -47,7 +47,7 @@ pub fn write(path: &Path, records: &[EpochRecord]) -> std::io::Result<()> {
     crate::atomic::write(path, text)
 }
 
-/// Reads curves written by [`write`] (also those without the last column).
+/// Reads curves written by [`write()`] (also those without the last column).
 pub fn read(path: &Path) -> std::io::Result<Vec<EpochRecord>> {
     let bad = |line: usize| {
         std::io::Error::new(

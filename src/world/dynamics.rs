@@ -35,7 +35,7 @@ pub struct Axles {
 /// ```
 ///
 /// Speed bounds are not applied here: the rollout projects `u` so that `v'` stays in
-/// `[v_min, v_max]` (see [`crate::world::safety::project_action`]).
+/// `[v_min, v_max]` (see [`crate::world::step::applied_action`]).
 pub fn bicycle_step<T: Num>(s: &Kinematics<T>, u: &T, delta: &T, axles: Axles, dt: f64) -> Kinematics<T> {
     let beta = delta.tan().mul_c(axles.l_r / (axles.l_r + axles.l_f)).atan();
     let heading = s.phi.add(&beta);
