@@ -132,11 +132,12 @@ fn a_curved_ramp_network_runs_every_controller_with_the_proposed_merge_toml() {
         "conflict point {}",
         merge.conflict_point
     );
-    // SUMO's lane-change safety (mode 512) as the shield: this test is about the network.
-    // Without it, on seeds 0-4, the unshielded policies had 0-2 controlled collisions in 54
-    // egos per run, a human rear-ending an ego that had just merged (issue 15's gap).
+    // cosim's default shields (SUMO's safe speed, lane-change mode 256). With the proposal's
+    // merge_from the egos take the first safe gap on the acceleration lane: SUMO seeds 0-4 all
+    // had 0 controlled collisions. Merging at x_c only (the previous stop's deployment), 0-2 of
+    // the 54 egos per run were rear-ended by a human right after merging.
     let (runs, _) = common::cosim_json(
-        &["--end", "600", "--lane-change-mode", "512"],
+        &["--end", "600"],
         &dir.join("user.sumocfg"),
         &dir.join("out"),
     );
