@@ -136,11 +136,7 @@ fn a_curved_ramp_network_runs_every_controller_with_the_proposed_merge_toml() {
     // merge_from the egos take the first safe gap on the acceleration lane: SUMO seeds 0-4 all
     // had 0 controlled collisions. Merging at x_c only (the previous stop's deployment), 0-2 of
     // the 54 egos per run were rear-ended by a human right after merging.
-    let (runs, _) = common::cosim_json(
-        &["--end", "600"],
-        &dir.join("user.sumocfg"),
-        &dir.join("out"),
-    );
+    let (runs, _) = common::cosim_json(&["--end", "600"], &dir.join("user.sumocfg"), &dir.join("out"));
     let runs = runs.as_array().unwrap();
     assert_eq!(runs.len(), 3);
     for run in runs {
