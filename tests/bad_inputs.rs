@@ -67,43 +67,38 @@ fn cases() -> Vec<Case> {
         args,
         needle,
     };
+    // A command reading one configuration file, `{D}/c.toml`, holding `text`.
+    let with_config =
+        |name, args: Vec<&'static str>, text: String, needle| c(name, vec![("c.toml", text)], args, needle);
     let traffic_eval = |name, text: String, needle| {
-        c(
-            name,
-            vec![("c.toml", text)],
-            vec![
-                "eval",
-                "--config",
-                "{D}/c.toml",
-                "--policy",
-                "policies/traffic/mpg",
-            ],
-            needle,
-        )
+        let args = vec![
+            "eval",
+            "--config",
+            "{D}/c.toml",
+            "--policy",
+            "policies/traffic/mpg",
+        ];
+        with_config(name, args, text, needle)
     };
     let demo = |name, text: String, needle| {
-        c(
+        with_config(
             name,
-            vec![("c.toml", text)],
             vec!["demo", "--scenarios", "2", "--config", "{D}/c.toml"],
+            text,
             needle,
         )
     };
     let train = |name, text: String, needle| {
-        c(
-            name,
-            vec![("c.toml", text)],
-            vec![
-                "train",
-                "--config",
-                "{D}/c.toml",
-                "--seeds",
-                "0",
-                "--out",
-                "{D}/out",
-            ],
-            needle,
-        )
+        let args = vec![
+            "train",
+            "--config",
+            "{D}/c.toml",
+            "--seeds",
+            "0",
+            "--out",
+            "{D}/out",
+        ];
+        with_config(name, args, text, needle)
     };
     let cosim = |name, files: Vec<(&'static str, String)>, extra: Vec<&'static str>, needle| {
         let mut args = vec!["cosim", "--controllers", "sumo", "--end", "5", "--out", "{D}/out"];
