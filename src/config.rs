@@ -91,6 +91,11 @@ pub struct TrafficConfig {
     pub human_share: [f64; 2],
     /// Share of the target-lane vehicles placed ahead of the conflict point.
     pub ahead_share: f64,
+    /// Range of each episode's desired speed `v_d` (m/s): the reward tracks it, and the
+    /// sampled speeds and IDM's `v0` scale by `v_d / reward.v_desired`, so one policy drives
+    /// roads of different speed limits. None: `reward.v_desired` in every episode.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub desired_speed: Option<[f64; 2]>,
 }
 
 /// Vehicle body and kinematic-bicycle parameters (eq. 1).
@@ -522,6 +527,9 @@ impl Config {
         range("traffic.lane_flow", t.lane_flow, 1.0, 4000.0)?;
         range("traffic.ramp_flow", t.ramp_flow, 1.0, 4000.0)?;
         range("traffic.human_share", t.human_share, 0.0, 1.0)?;
+        if let Some(d) = t.desired_speed {
+            range("traffic.desired_speed", d, 1.0, self.vehicle.v_max)?;
+        }
         finite("traffic.ahead_share", t.ahead_share)?;
         check(
             "traffic.ahead_share",

@@ -247,7 +247,12 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
         .collect();
     assert_eq!(episodes.len(), 2);
     for (scene, internal) in &episodes {
-        let sumo = sumo_tracks(&config, geometry.clone(), TRAFFIC_POLICY, scene, steps);
+        // The policy observes the episode's desired speed in SUMO too (merge.toml's key).
+        let geometry = MergeGeometry {
+            desired_speed: scene.v_desired,
+            ..geometry.clone()
+        };
+        let sumo = sumo_tracks(&config, geometry, TRAFFIC_POLICY, scene, steps);
         let ran = steps;
         let worst = internal[..ran]
             .iter()

@@ -253,3 +253,24 @@ fn humans_are_no_players_of_the_potential() {
     let own1 = -(14.0f64 - 15.0).powi(2) - 0.5;
     assert!((mixed.potential - two.potential - own1 - r12).abs() < 1e-12);
 }
+
+#[test]
+fn a_scene_of_its_own_desired_speed_tracks_it_with_a_relative_weight() {
+    // smoke.toml: v_d = 15, w_speed = 1, w_comfort = 0.5. One vehicle alone (no pair terms)
+    // at 27 m/s applying 1 m/s^2 in a scene of v_d = 30: speed term -(27 - 30)^2 = -9,
+    // weighted by (15 / 30)^2 = 1/4, comfort -0.5: r = -2.25 - 0.5 = -2.75. Without the
+    // scene's own v_d: -(27 - 15)^2 - 0.5 = -144.5.
+    let config = smoke();
+    let reward = PaperReward::new(&config);
+    let mut s = scene(vec![car(100.0, 27.0, false)]);
+    let mut out = StepRewards::default();
+    out.compute(&reward.in_scene(&s), &reward, &s.vehicles, &[1.0], &[]);
+    assert_abs_diff_eq!(out.reward[0], -144.5, epsilon = 1e-12);
+    s.v_desired = Some(30.0);
+    let own = reward.in_scene(&s);
+    out.compute(&own, &own, &s.vehicles, &[1.0], &[]);
+    assert_abs_diff_eq!(out.reward[0], -2.75, epsilon = 1e-12);
+    assert_abs_diff_eq!(out.potential, -2.75, epsilon = 1e-12);
+    // The logged terms stay unweighted.
+    assert_abs_diff_eq!(out.terms[0].speed, -9.0, epsilon = 1e-12);
+}

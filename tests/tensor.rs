@@ -209,7 +209,7 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
 fn engines_agree_in_merge_traffic_with_human_drivers() {
     // Traffic episodes (3 ramp vehicles, 10 in the target lane, IDM humans merging by the
     // gate) with a speed-keeping linear policy for the players: same returns and potential.
-    use mpgdrive::policy::observation::{Layout, tensor_observations};
+    use mpgdrive::policy::observation::{Frame, Layout, tensor_observations};
     use mpgdrive::policy::{LinearPolicy, PolicyActor};
     let config = common::traffic();
     let scenes = sample_scenes(&config, 3, 0, 16);
@@ -231,7 +231,7 @@ fn engines_agree_in_merge_traffic_with_human_drivers() {
             &scenes,
             &double(steps, true, true, tensor::Learning::All),
             |b, nb, _| {
-                let obs = tensor_observations(Layout::Traffic, config.scenario.conflict_point, b, nb);
+                let obs = tensor_observations(Layout::Traffic, Frame::of(&config), b, nb);
                 (obs.matmul(&w.to_kind(obs.kind())) + f64::from(linear.bias)).tanh() * f64::from(linear.scale)
             },
         )

@@ -134,7 +134,7 @@ fn a_curved_ramp_network_runs_every_controller_with_the_proposed_merge_toml() {
     );
     // cosim's default shields (SUMO's safe speed, lane-change mode 256). With the proposal's
     // merge_from the egos take the first safe gap on the acceleration lane: SUMO seeds 0-4 all
-    // had 0 controlled collisions. Merging at x_c only (the previous stop's deployment), 0-2 of
+    // had 0 controlled collisions (the previous traffic policies; seed 0 with the current ones). Merging at x_c only (the previous stop's deployment), 0-2 of
     // the 54 egos per run were rear-ended by a human right after merging.
     let (runs, _) = common::cosim_json(&["--end", "600"], &dir.join("user.sumocfg"), &dir.join("out"));
     let runs = runs.as_array().unwrap();
@@ -147,6 +147,9 @@ fn a_curved_ramp_network_runs_every_controller_with_the_proposed_merge_toml() {
             run["summary"]["mean_speed"].as_f64().unwrap()
         );
         assert!(finished >= 30, "{c}: {finished} controlled egos");
+        // The traffic policies observe the road's speed: the freeway's 18 m/s limit.
+        let expected = if c == "sumo" { None } else { Some(18.0) };
+        assert_eq!(run["desired_speed"].as_f64(), expected, "{c}");
         assert_eq!(run["summary"]["collisions"], 0, "{c}");
         let controlled = run["collisions"]
             .as_array()

@@ -264,11 +264,17 @@ mod with_sumo {
         atomic::write(
             &out.join("cosim.md"),
             format!(
-                "Command: `{}`\n\nmpgdrive {}, {}. {}\n\n{}",
+                "Command: `{}`\n\nmpgdrive {}, {}. {}{}\n\n{}",
                 command.join(" "),
                 mpgdrive::VERSION,
                 runs.first().map_or("SUMO not run", |r| r.sumo_version.as_str()),
                 runs.first().map_or(String::new(), |r| shields_line(&r.shields)),
+                runs.iter()
+                    .find_map(|r| r.desired_speed)
+                    .map_or(String::new(), |v| format!(
+                        " The traffic policy observed a desired speed of {v} m/s (the speed limit of \
+                         the lane egos merge into)."
+                    )),
                 cosim::markdown(runs)
             ),
         )?;

@@ -227,7 +227,13 @@ fn run_chunk(
                     raw[b * n + i],
                 );
             }
-            rewards.compute(&base, pair, &scene.vehicles, &applied, &scene.humans);
+            rewards.compute(
+                &base.in_scene(scene),
+                pair,
+                &scene.vehicles,
+                &applied,
+                &scene.humans,
+            );
             for (ret, r) in out.returns.iter_mut().zip(&rewards.reward) {
                 *ret += discount * r;
             }

@@ -7,11 +7,11 @@
 //! ([`first_collision`]). `tests/tensor.rs` checks that both engines agree.
 
 use crate::config::Config;
-use crate::game::reward::tail_weight;
+use crate::game::reward::{speed_weight, tail_weight};
 use crate::game::terms;
 use crate::num::Num;
 use crate::world::dynamics::{Kinematics, bicycle_step};
-use crate::world::idm::idm_accel;
+use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::merge_gate::{gate_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
@@ -37,6 +37,8 @@ pub struct TensorBatch {
     pub human: Tensor,
     /// Each scene's human flags (as [`Scene::humans`]).
     humans: Vec<Vec<bool>>,
+    /// Each scene's own desired speed (as [`Scene::v_desired`]).
+    own_desired: Vec<Option<f64>>,
     /// The same states as plain scenes, without gradient: the discrete work (neighbours,
     /// merge gate, collisions) reads them, copied out of the tensors once per step.
     detached: Vec<Scene>,
@@ -62,8 +64,20 @@ impl TensorBatch {
             on_ramp: field(|v| if v.on_ramp { 1.0 } else { 0.0 }),
             human: human_mask(scenes, kind),
             humans: scenes.iter().map(|s| s.humans.clone()).collect(),
+            own_desired: scenes.iter().map(|s| s.v_desired).collect(),
             detached: scenes.to_vec(),
         }
+    }
+
+    /// `[batch, 1]`: `f` of each scene's own desired speed ([`Scene::v_desired`]), when any
+    /// scene has one; none: every scene keeps the configuration's values.
+    pub fn per_scene(&self, f: impl Fn(Option<f64>) -> f64) -> Option<Tensor> {
+        self.own_desired.iter().any(Option::is_some).then(|| {
+            let data: Vec<f64> = self.own_desired.iter().map(|&d| f(d)).collect();
+            Tensor::from_slice(&data)
+                .reshape([data.len() as i64, 1])
+                .to_kind(self.x.kind())
+        })
     }
 
     /// The next state of `self`: these tensors, the same drivers (the scenes are copied out
@@ -77,6 +91,7 @@ impl TensorBatch {
             on_ramp,
             human: self.human.shallow_clone(),
             humans: self.humans.clone(),
+            own_desired: self.own_desired.clone(),
             detached: Vec::new(),
         };
         batch.detached = batch.copy_scenes();
@@ -109,6 +124,7 @@ impl TensorBatch {
                     })
                     .collect(),
                 humans: self.humans[b].clone(),
+                v_desired: self.own_desired[b],
             })
             .collect()
     }
@@ -189,8 +205,17 @@ impl NeighborIndex {
 /// IDM accelerations of every player (behind the same-lane leader; on the ramp also behind
 /// the nearest leader, whichever asks for less, as [`crate::world::drivers::driver_accel`]).
 pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> Tensor {
-    let behind =
-        |leader: &Neighbor<Tensor>| idm_accel(&batch.x, &batch.v, leader, config.vehicle.length, &config.idm);
+    let v0 = batch.per_scene(|d| idm_v0(config, d));
+    let behind = |leader: &Neighbor<Tensor>| {
+        idm_accel(
+            &batch.x,
+            &batch.v,
+            leader,
+            config.vehicle.length,
+            &config.idm,
+            v0.as_ref(),
+        )
+    };
     let lane = behind(&nb.get(batch, Which::LaneLeader));
     let nearest = behind(&nb.get(batch, Which::Leader));
     <Tensor as Num>::select(&batch.on_ramp, &Num::min(&lane, &nearest), &lane)
@@ -301,7 +326,17 @@ impl Pairs {
 pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Tensor) -> (Tensor, Tensor) {
     let r = &config.reward;
     let x_c = config.scenario.conflict_point;
-    let own = terms::speed_tracking(&batch.v, r.v_desired) * r.w_speed + terms::comfort(u) * r.w_comfort;
+    // A scene's own desired speed comes with its weight factor (`speed_weight`).
+    let speed = match batch.per_scene(|d| d.unwrap_or(r.v_desired)) {
+        Some(v_d) => {
+            let weight = batch
+                .per_scene(|d| r.w_speed * d.map_or(1.0, |d| speed_weight(r.v_desired, d)))
+                .expect("scenes of their own desired speed");
+            terms::speed_tracking_towards(&batch.v, &v_d) * weight
+        }
+        None => terms::speed_tracking(&batch.v, r.v_desired) * r.w_speed,
+    };
+    let own = speed + terms::comfort(u) * r.w_comfort;
     let ends = |t: &Tensor| (t.index_select(1, &pairs.first), t.index_select(1, &pairs.second));
     let ((xi, xj), (vi, vj), (ri, rj)) = (ends(&batch.x), ends(&batch.v), ends(&batch.on_ramp));
     let same_lane: Tensor = 1.0 - (ri - rj).abs();

@@ -10,6 +10,12 @@ pub fn speed_tracking<T: Num>(v: &T, v_desired: f64) -> T {
     v.add_c(-v_desired).square().neg()
 }
 
+/// Speed tracking towards a desired speed of each vehicle's own (a tensor of them may
+/// broadcast over a scene's vehicles), `-(v - v_d)^2`.
+pub fn speed_tracking_towards<T: Num>(v: &T, v_desired: &T) -> T {
+    v.sub(v_desired).square().neg()
+}
+
 /// Ride comfort, `-u^2`.
 pub fn comfort<T: Num>(u: &T) -> T {
     u.square().neg()

@@ -25,7 +25,7 @@ use crate::ngsim::process::{Prepared, Track};
 use crate::ngsim::scenario::MergeScenario;
 use crate::policy::file::Sidecar;
 use crate::policy::network::PolicyNet;
-use crate::policy::observation::{BatchPolicy, Layout, observe};
+use crate::policy::observation::{BatchPolicy, Frame, Layout, observe};
 use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
@@ -116,6 +116,7 @@ pub fn replay(
     let mut stats = EgoStats::default();
     let (mut order, mut nb) = (Vec::new(), Vec::new());
     let layout = Layout::of(config);
+    let frame = Frame::of(config);
     let mut obs = vec![0.0f32; layout.dim()];
     let mut action = [0.0f32];
     let (mut collision, mut merged, mut done) = (false, false, 0);
@@ -127,7 +128,7 @@ pub fn replay(
             }
             EgoDriver::Policy(policy) => {
                 find_neighbors(&scene, &mut order, &mut nb);
-                observe(layout, rules.conflict_point(), &scene, 0, &nb[0], &mut obs);
+                observe(layout, frame, &scene, 0, &nb[0], &mut obs);
                 policy.act(&obs, 1, &mut action);
                 applied_action(
                     &rules,

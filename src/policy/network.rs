@@ -10,8 +10,9 @@ use tch::{Device, Kind, Tensor, nn, nn::Module};
 /// Scale of each Table I feature (the one-hot index is not scaled): distances by 100 m,
 /// speeds by 30 m/s, relative speeds by 10 m/s, flags by 1.
 pub const OBS_SCALE: [f32; N_FEATURES] = [0.01, 1.0 / 30.0, 0.01, 0.1, 1.0, 0.01, 0.1, 1.0, 1.0];
-/// Scale of the traffic layout's same-lane leader features (distance, relative speed, flag).
-pub const LANE_LEADER_SCALE: [f32; 3] = [0.01, 0.1, 1.0];
+/// Scale of the traffic layout's features after Table I's: the same-lane leader's (distance,
+/// relative speed, flag) and the desired speed (as speeds, by 30 m/s).
+pub const TRAFFIC_SCALE: [f32; 4] = [0.01, 0.1, 1.0, 1.0 / 30.0];
 
 /// Sizes and scales of a network, everything needed to rebuild it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -34,7 +35,7 @@ impl NetSpec {
     pub fn new(layout: Layout, hidden: usize, action_scale: f64) -> Self {
         let mut obs_scale = OBS_SCALE.to_vec();
         if layout == Layout::Traffic {
-            obs_scale.extend(LANE_LEADER_SCALE);
+            obs_scale.extend(TRAFFIC_SCALE);
         }
         obs_scale.resize(layout.dim(), 1.0);
         NetSpec {

@@ -35,11 +35,12 @@ use crate::world::step::neighbor_of;
 /// with them.
 pub const OBS_LAYOUT_VERSION: u32 = 2;
 /// Observation layout version of merge traffic ([`Layout::Traffic`]).
-pub const TRAFFIC_LAYOUT_VERSION: u32 = 3;
+pub const TRAFFIC_LAYOUT_VERSION: u32 = 4;
 /// Number of features before the one-hot agent index.
 pub const N_FEATURES: usize = 9;
-/// Number of features of the traffic layout: Table I's nine and the same-lane leader's three.
-pub const N_TRAFFIC_FEATURES: usize = 12;
+/// Number of features of the traffic layout: Table I's nine, the same-lane leader's three and
+/// the desired speed.
+pub const N_TRAFFIC_FEATURES: usize = 13;
 /// Distance reported for a missing neighbour, and the largest reported for a present one (m).
 pub const MISSING_DISTANCE: f64 = 100.0;
 
@@ -55,7 +56,9 @@ pub enum Layout {
     /// Merge traffic (version [`TRAFFIC_LAYOUT_VERSION`]): Table I's nine features, then the
     /// nearest vehicle ahead in the same lane (distance `x_LL - x`, relative speed, flag; as
     /// features 2-4, capped the same way). A ramp vehicle sees the ramp vehicle it queues
-    /// behind, a target-lane vehicle the one it follows. No agent index: any number of
+    /// behind, a target-lane vehicle the one it follows. Then the scene's desired speed `v_d`
+    /// (m/s, [`Scene::desired_speed`]): the road's speed, so one policy drives roads of any
+    /// speed limit (version 4; version 3 had no `v_d`). No agent index: any number of
     /// vehicles play, each a player of every ego it meets.
     Traffic,
 }
@@ -141,9 +144,29 @@ pub fn ahead_features<T: Num>(x: &T, v: &T, ahead: &Neighbor<T>) -> [T; 3] {
     ]
 }
 
+/// Where a world's observations are taken: its conflict point and the desired speed of
+/// scenes without their own (the configuration's `reward.v_desired`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    /// Conflict point `x_c` (m).
+    pub x_c: f64,
+    /// Desired speed of a scene without its own (m/s).
+    pub v_desired: f64,
+}
+
+impl Frame {
+    /// The frame of a configuration's world.
+    pub fn of(config: &Config) -> Self {
+        Frame {
+            x_c: config.scenario.conflict_point,
+            v_desired: config.reward.v_desired,
+        }
+    }
+}
+
 /// Writes the observation of player `i` of `scene` into `out` (length [`Layout::dim`]).
-pub fn observe(layout: Layout, x_c: f64, scene: &Scene, i: usize, nb: &Neighbors, out: &mut [f32]) {
-    observe_as(layout, x_c, scene, i, i, nb, out);
+pub fn observe(layout: Layout, frame: Frame, scene: &Scene, i: usize, nb: &Neighbors, out: &mut [f32]) {
+    observe_as(layout, frame, scene, i, i, nb, out);
 }
 
 /// As [`observe`], with the one-hot agent index `agent` instead of `i`: for scenes that hold
@@ -151,7 +174,7 @@ pub fn observe(layout: Layout, x_c: f64, scene: &Scene, i: usize, nb: &Neighbors
 /// plays the role of player `agent` (the traffic layout has no index).
 pub fn observe_as(
     layout: Layout,
-    x_c: f64,
+    frame: Frame,
     scene: &Scene,
     i: usize,
     agent: usize,
@@ -160,7 +183,7 @@ pub fn observe_as(
 ) {
     let me = &scene.vehicles[i];
     let f = features(
-        x_c,
+        frame.x_c,
         &me.x,
         &me.v,
         &if me.on_ramp { 1.0 } else { 0.0 },
@@ -175,6 +198,7 @@ pub fn observe_as(
         for (o, v) in out[N_FEATURES..].iter_mut().zip(lane) {
             *o = v as f32;
         }
+        out[N_FEATURES + 3] = scene.desired_speed(frame.v_desired) as f32;
     }
     let features = layout.features();
     for (k, o) in out[features..].iter_mut().enumerate() {
@@ -282,13 +306,13 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
         let rows = scenes.len() * per_scene;
         self.obs.resize(rows * dim, 0.0);
         self.act.resize(rows, 0.0);
-        let x_c = self.config.scenario.conflict_point;
+        let frame = Frame::of(&self.config);
         for (b, scene) in scenes.iter().enumerate() {
             for i in 0..per_scene {
                 let row = b * per_scene + i;
                 observe(
                     layout,
-                    x_c,
+                    frame,
                     scene,
                     i,
                     &neighbors[b * n + i],
@@ -320,13 +344,13 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
 /// [`features`] as [`observe`] (differentiable in the states).
 pub fn tensor_observations(
     layout: Layout,
-    x_c: f64,
+    frame: Frame,
     batch: &crate::engine::tensor::TensorBatch,
     nb: &crate::engine::tensor::NeighborIndex,
 ) -> tch::Tensor {
     use crate::engine::tensor::Which;
     let mut f: Vec<tch::Tensor> = features(
-        x_c,
+        frame.x_c,
         &batch.x,
         &batch.v,
         &batch.on_ramp,
@@ -349,6 +373,10 @@ pub fn tensor_observations(
                 &batch.v,
                 &nb.get(batch, Which::LaneLeader),
             ));
+            let v_d = batch
+                .per_scene(|d| d.unwrap_or(frame.v_desired))
+                .unwrap_or_else(|| batch.x.narrow(1, 0, 1).full_like(frame.v_desired));
+            f.push(v_d.expand_as(&batch.x));
             tch::Tensor::stack(&f, 2)
         }
     }
@@ -362,6 +390,14 @@ mod tests {
 
     use crate::world::state::test_car as car;
 
+    /// x_c = 180 m, v_d = 15 m/s.
+    fn frame() -> Frame {
+        Frame {
+            x_c: 180.0,
+            v_desired: 15.0,
+        }
+    }
+
     /// Every vehicle's observation of a scene of three (x_c = 180 m).
     fn observations(vehicles: Vec<Vehicle>) -> Vec<Vec<f32>> {
         let scene = Scene::new(vehicles);
@@ -371,7 +407,7 @@ mod tests {
             .map(|i| {
                 let layout = Layout::Table1 { players: 3 };
                 let mut out = vec![0.0f32; layout.dim()];
-                observe(layout, 180.0, &scene, i, &nb[i], &mut out);
+                observe(layout, frame(), &scene, i, &nb[i], &mut out);
                 out
             })
             .collect()
@@ -407,13 +443,14 @@ mod tests {
     }
 
     #[test]
-    fn traffic_observation_of_version_3_is_pinned() {
+    fn traffic_observation_of_version_4_is_pinned() {
         // A queue on the ramp (ego at 150 m behind a ramp car at 165 m) beside a target-lane
         // car at 160 m: the nearest leader is the target-lane car, the same-lane leader the
-        // ramp car. No agent index. A change here changes what a traffic policy sees: bump
+        // ramp car. Then the scene's desired speed: the frame's 15 m/s, or the scene's own
+        // 25 m/s. No agent index. A change here changes what a traffic policy sees: bump
         // TRAFFIC_LAYOUT_VERSION and update this test.
-        assert_eq!((TRAFFIC_LAYOUT_VERSION, N_TRAFFIC_FEATURES), (3, 12));
-        let scene = Scene::new(vec![
+        assert_eq!((TRAFFIC_LAYOUT_VERSION, N_TRAFFIC_FEATURES), (4, 13));
+        let mut scene = Scene::new(vec![
             car(150.0, 10.0, true),
             car(165.0, 8.0, true),
             car(160.0, 13.0, false),
@@ -421,20 +458,38 @@ mod tests {
         let (mut order, mut nb) = (Vec::new(), Vec::new());
         find_neighbors(&scene, &mut order, &mut nb);
         let layout = Layout::Traffic;
-        let mut rows = vec![vec![0.0f32; layout.dim()]; 3];
-        for (i, row) in rows.iter_mut().enumerate() {
-            observe(layout, 180.0, &scene, i, &nb[i], row);
-        }
-        let expected: [[f32; 12]; 3] = [
-            [30.0, 10.0, 10.0, 3.0, 1.0, 100.0, 0.0, 0.0, 1.0, 15.0, -2.0, 1.0],
+        let observe_all = |scene: &Scene| {
+            let mut rows = vec![vec![0.0f32; layout.dim()]; 3];
+            for (i, row) in rows.iter_mut().enumerate() {
+                observe(layout, frame(), scene, i, &nb[i], row);
+            }
+            rows
+        };
+        let expected: [[f32; 13]; 3] = [
+            [
+                30.0, 10.0, 10.0, 3.0, 1.0, 100.0, 0.0, 0.0, 1.0, 15.0, -2.0, 1.0, 15.0,
+            ],
             // the ramp car: no leader at all, the target-lane car 5 m behind.
-            [15.0, 8.0, 100.0, 0.0, 0.0, 5.0, 5.0, 1.0, 1.0, 100.0, 0.0, 0.0],
+            [
+                15.0, 8.0, 100.0, 0.0, 0.0, 5.0, 5.0, 1.0, 1.0, 100.0, 0.0, 0.0, 15.0,
+            ],
             // the target-lane car: the ramp car 5 m ahead (any lane), none in its lane.
-            [20.0, 13.0, 5.0, -5.0, 1.0, 10.0, -3.0, 1.0, 0.0, 100.0, 0.0, 0.0],
+            [
+                20.0, 13.0, 5.0, -5.0, 1.0, 10.0, -3.0, 1.0, 0.0, 100.0, 0.0, 0.0, 15.0,
+            ],
         ];
-        for (row, e) in rows.iter().zip(expected) {
+        for (row, e) in observe_all(&scene).iter().zip(expected) {
             assert_eq!(row.as_slice(), e.as_slice());
         }
+        scene.v_desired = Some(25.0);
+        for (row, e) in observe_all(&scene).iter().zip(expected) {
+            assert_eq!(row[..12], e[..12]);
+            assert_eq!(row[12], 25.0);
+        }
+        assert_eq!(
+            crate::policy::network::TRAFFIC_SCALE,
+            [0.01, 0.1, 1.0, 1.0 / 30.0]
+        );
     }
 
     #[test]

@@ -58,7 +58,7 @@
 use crate::config::Config;
 use crate::engine::outcome::EgoStats;
 use crate::policy::network::PolicyNet;
-use crate::policy::observation::{BatchPolicy, Layout, observe_as};
+use crate::policy::observation::{BatchPolicy, Frame, Layout, observe_as};
 use crate::render::timespace::{Road, Sample, TimeSpace};
 use crate::sumo::geometry::{MergeGeometry, PlayerControl};
 use crate::sumo::kind::ControllerKind;
@@ -217,6 +217,10 @@ pub struct Controller {
     /// The policy reads the traffic layout: an ego's game is every vehicle around it, formed
     /// anew each step (no fixed players, no agent index).
     traffic: bool,
+    /// The desired speed a traffic policy observes (m/s): the road's speed limit where egos
+    /// merge, within the range it was trained on (`traffic.desired_speed`; without one, its
+    /// `reward.v_desired`); none for Table I policies and `sumo`.
+    v_desired: Option<f64>,
     timing: ControllerTiming,
     order: Vec<usize>,
     /// The time-space record, when asked for.
@@ -248,6 +252,13 @@ impl Controller {
         let config = config.at_conflict_point(geometry.conflict_point);
         let rules = WorldRules::new(&config);
         let traffic = Layout::of(&config) == Layout::Traffic;
+        // The road's speed limit, within the desired speeds the policy was trained on.
+        let trained = config.traffic.as_ref().and_then(|t| t.desired_speed);
+        let road = geometry.desired_speed.or(positions.road_speed());
+        let v_desired = (traffic && kind != ControllerKind::Sumo).then(|| match (road, trained) {
+            (Some(v), Some([lo, hi])) => v.clamp(lo, hi),
+            _ => config.reward.v_desired,
+        });
         Controller {
             config,
             rules,
@@ -268,6 +279,7 @@ impl Controller {
             applied: HashMap::new(),
             lane_change_requested: HashSet::new(),
             traffic,
+            v_desired,
             timing: ControllerTiming::default(),
             order: Vec::new(),
             timespace: None,
@@ -292,6 +304,12 @@ impl Controller {
     /// The time-space record so far (none unless [`Controller::record_timespace`] was called).
     pub fn take_timespace(&mut self) -> Option<TimeSpace> {
         self.timespace.take()
+    }
+
+    /// The desired speed a traffic policy observes (m/s; none for Table I policies and
+    /// `sumo`).
+    pub fn desired_speed(&self) -> Option<f64> {
+        self.v_desired
     }
 
     /// Controller time so far.
@@ -629,7 +647,7 @@ impl Controller {
     fn decide(&mut self, cars: &[Car], games: &[Game]) -> Vec<(usize, f64)> {
         let layout = Layout::of(&self.config);
         let dim = layout.dim();
-        let x_c = self.rules.conflict_point();
+        let frame = Frame::of(&self.config);
         let lane_width = self.config.scenario.lane_width;
         let mut rows: Vec<(usize, usize, usize)> = Vec::new(); // (scene, member, car)
         let mut obs: Vec<f32> = Vec::new();
@@ -639,12 +657,13 @@ impl Controller {
         for game in games {
             // Traffic games share one scene (every car, in the order of `cars`): built once.
             if scenes.is_empty() || !self.traffic {
-                let scene = Scene::new(
+                let mut scene = Scene::new(
                     game.members
                         .iter()
                         .map(|&(j, _)| cars[j].vehicle(lane_width))
                         .collect(),
                 );
+                scene.v_desired = self.v_desired;
                 let mut nb = Vec::new();
                 find_neighbors(&scene, &mut self.order, &mut nb);
                 scenes.push(scene);
@@ -665,7 +684,7 @@ impl Controller {
                     if drive && claimed.insert(j) {
                         let start = obs.len();
                         obs.resize(start + dim, 0.0);
-                        observe_as(layout, x_c, scene, m, slot, &nb[m], &mut obs[start..]);
+                        observe_as(layout, frame, scene, m, slot, &nb[m], &mut obs[start..]);
                         rows.push((si, m, j));
                     }
                 }
@@ -811,6 +830,7 @@ mod tests {
             target_lanes: vec!["merge_1".into()],
             target_start: 0.0,
             merge_from: None,
+            desired_speed: None,
             controllable_types: vec!["ctrl".into()],
             players: PlayerControl::All,
         };

@@ -165,6 +165,9 @@ pub struct ControllerRun {
     /// The shields the controlled vehicles ran under: the merge gate, and SUMO's speed and
     /// lane-change modes (`sumo`: none applies).
     pub shields: Shields,
+    /// The desired speed a traffic policy observed (m/s): the speed limit of the lane egos
+    /// merge into; none for Table I policies and `sumo`.
+    pub desired_speed: Option<f64>,
     /// Wall time in SUMO's step (us per step).
     pub sumo_us_per_step: f64,
     /// Wall time in the controller (us per step).
@@ -306,6 +309,7 @@ pub fn run_controller(
     let simulated = sumo.time()?;
     sumo.close()?;
     let timing = controller.timing();
+    let desired_speed = controller.desired_speed();
     let collisions = controller.collisions.clone();
     let speed_overrides = controller.overridden;
     let mut timespace = controller.take_timespace();
@@ -341,6 +345,7 @@ pub fn run_controller(
     run.timespace = timespace;
     run.ssm_output = ssm_output;
     run.sumo_version = sumo_version;
+    run.desired_speed = desired_speed;
     run.shields = Shields {
         merge_gate: config.sim.merge_gate,
         speed_mode: settings.modes.speed,
@@ -424,6 +429,7 @@ fn summarise(
         controller,
         seed,
         sumo_version: String::new(),
+        desired_speed: None,
         simulated,
         steps,
         summary: Summary::of(&metrics),

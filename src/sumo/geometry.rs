@@ -37,6 +37,11 @@ pub struct MergeGeometry {
     /// simulator merges.
     #[serde(default)]
     pub merge_from: Option<f64>,
+    /// The desired speed a traffic policy observes (m/s). Unset: the speed limit of the
+    /// target lane beside the acceleration lane. Either way within the range the policy was
+    /// trained on (`traffic.desired_speed`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub desired_speed: Option<f64>,
     /// Lanes of the ramp, in driving order, the acceleration lane last (egos drive here before
     /// merging).
     pub ramp_lanes: Vec<String>,
@@ -67,6 +72,10 @@ impl MergeGeometry {
         finite("control_from", self.control_from)?;
         non_negative("release_after", self.release_after)?;
         finite("target_start", self.target_start)?;
+        if let Some(v) = self.desired_speed {
+            finite("desired_speed", v)?;
+            check("desired_speed", v > 0.0, format!("{v} must be positive"))?;
+        }
         if let Some(from) = self.merge_from {
             finite("merge_from", from)?;
             check(

@@ -15,6 +15,8 @@ use std::collections::HashMap;
 /// A lane as the network gives it.
 struct NetLane {
     length: f64,
+    /// Speed limit (m/s).
+    speed: Option<f64>,
 }
 
 /// Where each ramp, target and junction lane between them starts, and how lane positions
@@ -23,6 +25,9 @@ struct NetLane {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LanePositions {
     lanes: HashMap<String, Placed>,
+    /// Speed limit of the target lane beside the acceleration lane (m/s), the road's speed
+    /// where egos merge.
+    road_speed: Option<f64>,
 }
 
 /// One lane on the road.
@@ -95,7 +100,14 @@ impl LanePositions {
             start -= length(&ramp_lanes[k])?;
             place(&ramp_lanes[k], start, 1.0)?;
         }
-        Ok(LanePositions { lanes })
+        let road_speed = net.get(&beside).and_then(|l| l.speed);
+        Ok(LanePositions { lanes, road_speed })
+    }
+
+    /// The speed limit of the target lane where egos merge (the lane beside the acceleration
+    /// lane), m/s; none when the network does not give one.
+    pub fn road_speed(&self) -> Option<f64> {
+        self.road_speed
     }
 
     /// The position of lane position `lane_pos` on `lane` (none for a lane off the merge).
@@ -117,7 +129,8 @@ fn lanes_of(doc: &roxmltree::Document) -> HashMap<String, NetLane> {
         .filter(|n| n.has_tag_name("lane"))
         .filter_map(|lane| {
             let length = lane.attribute("length")?.parse().ok()?;
-            Some((lane.attribute("id")?.to_owned(), NetLane { length }))
+            let speed = lane.attribute("speed").and_then(|s| s.parse().ok());
+            Some((lane.attribute("id")?.to_owned(), NetLane { length, speed }))
         })
         .collect()
 }

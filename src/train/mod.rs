@@ -23,7 +23,7 @@ use crate::policy::file::{self, PolicyError, Sidecar};
 pub use crate::policy::mode::Mode;
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::{BatchPolicy, PolicyActor};
-use crate::policy::observation::{Layout, observe, tensor_observations};
+use crate::policy::observation::{Frame, Layout, observe, tensor_observations};
 use crate::world::drivers::Driver;
 use crate::world::neighbors::find_neighbors;
 use crate::world::sampler::{Purpose, purpose_seed, sample_scenes};
@@ -122,8 +122,7 @@ fn tensor_actions(
     batch: &tensor::TensorBatch,
     nb: &tensor::NeighborIndex,
 ) -> Tensor {
-    let obs = tensor_observations(Layout::of(config), config.scenario.conflict_point, batch, nb)
-        .to_kind(Kind::Float);
+    let obs = tensor_observations(Layout::of(config), Frame::of(config), batch, nb).to_kind(Kind::Float);
     let (b, n, d) = (obs.size()[0], obs.size()[1], obs.size()[2]);
     let members = net.members() as i64;
     match mode {
@@ -154,7 +153,7 @@ fn probe_actions(config: &Config, net: &mut StackedNet, probe: &[Scene]) -> Tens
             let row = b * n + i;
             observe(
                 layout,
-                config.scenario.conflict_point,
+                Frame::of(config),
                 scene,
                 i,
                 neighbors,

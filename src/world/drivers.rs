@@ -1,7 +1,7 @@
 //! Non-learning drivers: IDM behind the leader a driver follows, and constant speed.
 
 use crate::config::Config;
-use crate::world::idm::idm_accel;
+use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::neighbors::Neighbors;
 use crate::world::state::Scene;
 use crate::world::step::neighbor_of;
@@ -23,9 +23,17 @@ pub fn driver_accel(config: &Config, driver: Driver, scene: &Scene, i: usize, n:
         Driver::ConstSpeed => 0.0,
         Driver::Idm => {
             let me = &scene.vehicles[i];
+            let v0 = scene.v_desired.map(|d| idm_v0(config, Some(d)));
             let behind = |leader: Option<usize>| {
                 let leader = neighbor_of(scene, leader, me);
-                idm_accel(&me.x, &me.v, &leader, config.vehicle.length, &config.idm)
+                idm_accel(
+                    &me.x,
+                    &me.v,
+                    &leader,
+                    config.vehicle.length,
+                    &config.idm,
+                    v0.as_ref(),
+                )
             };
             let lane = behind(n.lane_leader);
             // IDM behind a missing leader is the free-road acceleration, the largest: alone on

@@ -10,7 +10,7 @@
 //! floored at 0.1 m) and `dv = v - v_leader`. Without a leader only the free-road term acts.
 //! The result is clipped to `[-g, g]` by the rollout like every action.
 
-use crate::config::IdmConfig;
+use crate::config::{Config, IdmConfig};
 use crate::num::Num;
 use crate::world::safety::Neighbor;
 
@@ -18,8 +18,19 @@ use crate::world::safety::Neighbor;
 pub const MIN_GAP: f64 = 0.1;
 
 /// IDM acceleration of a vehicle at `(x, v)` behind `leader`; `length` is the vehicle length.
-pub fn idm_accel<T: Num>(x: &T, v: &T, leader: &Neighbor<T>, length: f64, p: &IdmConfig) -> T {
-    let free = v.mul_c(1.0 / p.v0).abs();
+/// `v0` replaces `p.v0` when given (a scene's own desired speed, [`idm_v0`]).
+pub fn idm_accel<T: Num>(
+    x: &T,
+    v: &T,
+    leader: &Neighbor<T>,
+    length: f64,
+    p: &IdmConfig,
+    v0: Option<&T>,
+) -> T {
+    let free = match v0 {
+        Some(v0) => v.div(v0).abs(),
+        None => v.mul_c(1.0 / p.v0).abs(),
+    };
     // (v / v0)^delta for a real delta: exp(delta ln(.)) is not in Num; integer deltas are the
     // norm (4), so use repeated products and a square root for a half-integer remainder.
     let free_term = powf(&free, p.delta);
@@ -31,6 +42,16 @@ pub fn idm_accel<T: Num>(x: &T, v: &T, leader: &Neighbor<T>, length: f64, p: &Id
     let s_star = dynamic.max(&v.full(0.0)).add_c(p.min_gap);
     let interaction = s_star.div(&gap).square().mul(&leader.present);
     free_term.add(&interaction).neg().add_c(1.0).mul_c(p.accel)
+}
+
+/// The IDM drivers' `v0` in a scene of desired speed `v_desired` (none: the configuration's
+/// `idm.v0`): `idm.v0` scaled by `v_desired / reward.v_desired`, so a faster road scales the
+/// drivers' aim with it.
+pub fn idm_v0(config: &Config, v_desired: Option<f64>) -> f64 {
+    match v_desired {
+        Some(v_d) => config.idm.v0 * (v_d / config.reward.v_desired),
+        None => config.idm.v0,
+    }
 }
 
 /// `x^p` for `x >= 0` and `p` a non-negative multiple of 0.5.

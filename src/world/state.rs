@@ -27,6 +27,11 @@ pub struct Scene {
     /// Which vehicles a human (IDM) drives in merge traffic, by index: not players of the
     /// game, whatever drives the others. Empty: none.
     pub humans: Vec<bool>,
+    /// The scene's desired speed `v_d` (m/s): the speed the reward's speed term tracks, and
+    /// (scaled by `v_d / reward.v_desired`) the IDM drivers' `v0`. None: the configuration's
+    /// `reward.v_desired` (the paper's world). Merge traffic draws it per scene
+    /// (`traffic.desired_speed`); the co-simulation sets the road's speed limit.
+    pub v_desired: Option<f64>,
 }
 
 impl Scene {
@@ -35,7 +40,13 @@ impl Scene {
         Scene {
             vehicles,
             humans: Vec::new(),
+            v_desired: None,
         }
+    }
+
+    /// The scene's desired speed: its own, else `default` (the configuration's).
+    pub fn desired_speed(&self, default: f64) -> f64 {
+        self.v_desired.unwrap_or(default)
     }
 
     /// Whether a human (IDM) drives vehicle `i`.

@@ -19,6 +19,10 @@
 //! stream speed, and held so that the TTC to the vehicle ahead of it in its lane is at least
 //! `sampling.min_ttc` (as the paper's sampler does). Every vehicle but the ego is a human (IDM)
 //! driver with the drawn share's probability.
+//!
+//! With `desired_speed`, the scene's desired speed `v_d` is drawn first, uniform in its range,
+//! and every speed range above (streams, spreads' bounds, the ego's strata) is scaled by
+//! `v_d / reward.v_desired` (capped at `vehicle.v_max`): the same traffic on a faster road.
 
 use crate::config::{Config, TrafficConfig};
 use crate::world::geometry::Road;
@@ -57,14 +61,14 @@ impl Stream {
         h_min - (1.0 - u).ln() * (self.spacing - h_min)
     }
 
-    /// A speed for a vehicle `h` behind one at `v_ahead` (none: the front of its lane).
-    fn speed(&self, rng: &mut ChaCha8Rng, config: &Config, ahead: Option<(f64, f64)>) -> f64 {
-        let p = &config.sampling;
-        let lo = p.speed[0].min(self.speed);
-        let hi = p.speed[1].max(self.speed);
+    /// A speed for a vehicle `h` behind one at `v_ahead` (none: the front of its lane), within
+    /// the scene's speed range `range` widened to hold the stream's speed.
+    fn speed(&self, rng: &mut ChaCha8Rng, range: [f64; 2], min_ttc: f64, ahead: Option<(f64, f64)>) -> f64 {
+        let lo = range[0].min(self.speed);
+        let hi = range[1].max(self.speed);
         let v = uniform(rng, [self.speed - SPEED_SPREAD, self.speed + SPEED_SPREAD]).clamp(lo, hi);
         match ahead {
-            Some((v_ahead, h)) => v.min(v_ahead + h / p.min_ttc),
+            Some((v_ahead, h)) => v.min(v_ahead + h / min_ttc),
             None => v,
         }
     }
@@ -77,8 +81,14 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
     let x_c = config.scenario.conflict_point;
     let h_min = p.headway[0];
     let mut rng = scenario_rng(seed, index as u64);
-    let lane = Stream::new(&mut rng, traffic.lane_flow, p.speed, h_min);
-    let ramp = Stream::new(&mut rng, traffic.ramp_flow, p.ego_speed, h_min);
+    let v_desired = traffic.desired_speed.map(|range| uniform(&mut rng, range));
+    // The sampled speeds scale with the scene's desired speed, within the vehicle's limits.
+    let k = v_desired.map_or(1.0, |v_d| v_d / config.reward.v_desired);
+    let v_max = config.vehicle.v_max;
+    let scaled = |r: [f64; 2]| [(r[0] * k).min(v_max), (r[1] * k).min(v_max)];
+    let (lane_speed, ramp_speed) = (scaled(p.speed), scaled(p.ego_speed));
+    let lane = Stream::new(&mut rng, traffic.lane_flow, lane_speed, h_min);
+    let ramp = Stream::new(&mut rng, traffic.ramp_flow, ramp_speed, h_min);
     let human_share = uniform(&mut rng, traffic.human_share);
     let car = |x: f64, v: f64, on_ramp: bool| Vehicle {
         x,
@@ -90,6 +100,7 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
 
     // The ego, stratified as the paper's.
     let (ego_x, ego_v) = stratified_ego(config, index, &mut rng);
+    let ego_v = (ego_v * k).min(v_max);
     let mut vehicles = vec![car(ego_x, ego_v, true)];
 
     // The ramp stream: some ahead of the ego (front-most last), the rest behind.
@@ -103,7 +114,9 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
             break;
         }
         // Ahead of a vehicle at v: the vehicle behind must not close in faster than h / min_ttc.
-        let v_ahead = ramp.speed(&mut rng, config, None).max(v - h / p.min_ttc);
+        let v_ahead = ramp
+            .speed(&mut rng, ramp_speed, p.min_ttc, None)
+            .max(v - h / p.min_ttc);
         x += h;
         v = v_ahead;
         ramp_ahead.push(car(x, v, true));
@@ -112,7 +125,7 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
     let (mut x, mut v) = (ego_x, ego_v);
     for _ in ramp_ahead.len()..others {
         let h = ramp.headway(&mut rng, h_min);
-        v = ramp.speed(&mut rng, config, Some((v, h)));
+        v = ramp.speed(&mut rng, ramp_speed, p.min_ttc, Some((v, h)));
         x -= h;
         vehicles.push(car(x, v, true));
     }
@@ -132,14 +145,18 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
             x -= h;
             ahead = ahead.map(|(v, _)| (v, h));
         }
-        let v = lane.speed(&mut rng, config, ahead);
+        let v = lane.speed(&mut rng, lane_speed, p.min_ttc, ahead);
         vehicles.push(car(x, v, false));
         ahead = Some((v, 0.0));
     }
     let humans = (0..vehicles.len())
         .map(|i| i > 0 && rng.random::<f64>() < human_share)
         .collect();
-    Scene { vehicles, humans }
+    Scene {
+        vehicles,
+        humans,
+        v_desired,
+    }
 }
 
 #[cfg(test)]
@@ -197,6 +214,7 @@ mod tests {
         let mut mean_spacing = |flow: f64| {
             let t = TrafficConfig {
                 lane_flow: [flow, flow],
+                desired_speed: None,
                 ..config.traffic.clone().unwrap()
             };
             config.sampling.speed = [12.0, 12.0];
@@ -214,5 +232,39 @@ mod tests {
         let (dense, sparse) = (mean_spacing(1240.0), mean_spacing(620.0));
         assert!((dense - 34.8).abs() < 3.0, "{dense}");
         assert!((sparse - 69.7).abs() < 6.0, "{sparse}");
+    }
+
+    #[test]
+    fn a_faster_road_scales_the_sampled_speeds() {
+        // v_d = 22.5 m/s is 1.5 times reward.v_desired = 15: the target lane's speed range
+        // [8, 20] becomes [12, 30], the ego's strata likewise, and the streams' +-2 m/s spread
+        // stays. The same draws without desired_speed keep v_d = 15 (none of the scene's own).
+        let config = traffic_config();
+        let base = config.traffic.clone().unwrap();
+        let fast = TrafficConfig {
+            desired_speed: Some([22.5, 22.5]),
+            ..base.clone()
+        };
+        let plain = TrafficConfig {
+            desired_speed: None,
+            ..base
+        };
+        let (mut fast_sum, mut plain_sum) = (0.0, 0.0);
+        for k in 0..100 {
+            let s = sample_traffic_scene(&config, &fast, 3, k);
+            assert_eq!(s.v_desired, Some(22.5));
+            assert_eq!(sample_traffic_scene(&config, &plain, 3, k).v_desired, None);
+            assert!(s.vehicles.iter().all(|v| v.v <= config.vehicle.v_max));
+            assert!((12.0..=30.0).contains(&s.ego().v), "ego {}", s.ego().v);
+            fast_sum += s.vehicles.iter().map(|v| v.v).sum::<f64>();
+            let p = sample_traffic_scene(&config, &plain, 3, k);
+            plain_sum += p.vehicles.iter().map(|v| v.v).sum::<f64>();
+        }
+        // Not exactly 1.5: the spread and the TTC bound on a vehicle's speed do not scale.
+        let ratio = fast_sum / plain_sum;
+        assert!(
+            (ratio - 1.5).abs() < 0.1,
+            "mean speeds {fast_sum} / {plain_sum} = {ratio}"
+        );
     }
 }
