@@ -331,6 +331,11 @@ fn cases() -> Vec<Case> {
             "playrs",
         ),
         cosim_merge(
+            "merge.toml negative desired speed",
+            merge_with("\nplayers = ", "\ndesired_speed = -5.0\nplayers = "),
+            "desired_speed",
+        ),
+        cosim_merge(
             "merge.toml lane not in the network",
             merge_with("\"merge_1\"", "\"merge_7\""),
             "merge_7",

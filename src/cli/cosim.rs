@@ -272,8 +272,8 @@ mod with_sumo {
                 runs.iter()
                     .find_map(|r| r.desired_speed)
                     .map_or(String::new(), |v| format!(
-                        " The traffic policy observed a desired speed of {v} m/s (the speed limit of \
-                         the lane egos merge into)."
+                        " The traffic policy observed a desired speed of {v} m/s (merge.toml's \
+                         `desired_speed`, else the speed limit of the lane egos merge into)."
                     )),
                 cosim::markdown(runs)
             ),
