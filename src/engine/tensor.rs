@@ -327,14 +327,11 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Tensor) 
     let r = &config.reward;
     let x_c = config.scenario.conflict_point;
     // A scene's own desired speed comes with its weight factor (`speed_weight`).
-    let speed = match batch.per_scene(|d| d.unwrap_or(r.v_desired)) {
-        Some(v_d) => {
-            let weight = batch
-                .per_scene(|d| r.w_speed * d.map_or(1.0, |d| speed_weight(r.v_desired, d)))
-                .expect("scenes of their own desired speed");
-            terms::speed_tracking_towards(&batch.v, &v_d) * weight
-        }
-        None => terms::speed_tracking(&batch.v, r.v_desired) * r.w_speed,
+    let v_d = batch.per_scene(|d| d.unwrap_or(r.v_desired));
+    let weight = batch.per_scene(|d| r.w_speed * d.map_or(1.0, |d| speed_weight(r.v_desired, d)));
+    let speed = match (v_d, weight) {
+        (Some(v_d), Some(weight)) => terms::speed_tracking_towards(&batch.v, &v_d) * weight,
+        _ => terms::speed_tracking(&batch.v, r.v_desired) * r.w_speed,
     };
     let own = speed + terms::comfort(u) * r.w_comfort;
     let ends = |t: &Tensor| (t.index_select(1, &pairs.first), t.index_select(1, &pairs.second));

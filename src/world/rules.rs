@@ -82,17 +82,7 @@ impl WorldRules {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::state::Vehicle;
-
-    fn at(x: f64, v: f64, on_ramp: bool) -> Vehicle {
-        Vehicle {
-            x,
-            y: if on_ramp { -3.66 } else { 0.0 },
-            v,
-            phi: 0.0,
-            on_ramp,
-        }
-    }
+    use crate::world::state::test_car as at;
 
     #[test]
     fn ramp_vehicles_merge_early_only_inside_the_zone_and_at_a_safe_gap() {
