@@ -6,12 +6,13 @@ mod common;
 use common::paper;
 use mpgdrive::config::Config;
 use mpgdrive::engine::rollout::{DriverActor, RolloutOptions, rollout};
+use mpgdrive::engine::tape::{self, Var};
 use mpgdrive::engine::tensor::{self, idm_actions};
+use mpgdrive::num::Num;
 use mpgdrive::world::Driver;
 use mpgdrive::world::sampler::sample_scenes;
-use tch::{Kind, Tensor};
 
-/// An f64 tensor rollout.
+/// A tensor rollout.
 fn double(
     steps: usize,
     feasibility: bool,
@@ -19,7 +20,6 @@ fn double(
     learning: tensor::Learning,
 ) -> tensor::TensorRun {
     tensor::TensorRun {
-        kind: Kind::Double,
         steps,
         feasibility,
         terminate_on_collision,
@@ -41,19 +41,17 @@ fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, term
     };
     let scalar = rollout(config, &opts, &scenes, || DriverActor::new(config, ego, others));
     let mask = |d: Driver| if d == Driver::Idm { 1.0 } else { 0.0 };
-    let mut weights = vec![mask(others); 9];
-    weights[0] = mask(ego);
-    let weights = Tensor::from_slice(&weights).to_kind(Kind::Double);
-    let t = tch::no_grad(|| {
-        tensor::rollout(
-            config,
-            &scenes,
-            &double(steps, feasibility, terminate, tensor::Learning::All),
-            |b, nb, _| idm_actions(config, b, nb) * &weights,
-        )
-    });
-    let returns = Vec::<f64>::try_from(t.returns.flatten(0, -1)).unwrap();
-    let potential = Vec::<f64>::try_from(t.potential).unwrap();
+    let weights: Vec<f64> = (0..scenes.len() * 9)
+        .map(|k| if k % 9 == 0 { mask(ego) } else { mask(others) })
+        .collect();
+    let weights = Var::constant(weights, scenes.len(), 9);
+    let t = tensor::rollout(
+        config,
+        &scenes,
+        &double(steps, feasibility, terminate, tensor::Learning::All),
+        |b, nb, _| idm_actions(config, b, nb).mul(&weights),
+    );
+    let (returns, potential) = (t.returns.values(), t.potential.values());
     let mut collisions = 0;
     for (k, o) in scalar.iter().enumerate() {
         collisions += usize::from(o.collision.is_some());
@@ -113,28 +111,36 @@ fn potential_gradient_matches_finite_differences() {
     // d Phi / d theta for a common acceleration offset theta added to every IDM action.
     let config = paper();
     let scenes = sample_scenes(&config, 4, 0, 8);
-    let phi = |theta: &Tensor| {
+    // One theta per scene (a leaf of the tape); the derivative for a common offset is their
+    // sum.
+    let phi = |theta: &Var| {
         tensor::rollout(
             &config,
             &scenes,
             &double(60, false, false, tensor::Learning::All),
-            |b, nb, _| idm_actions(&config, b, nb) + theta,
+            |b, nb, _| idm_actions(&config, b, nb).add(theta),
         )
         .potential
-        .mean(Kind::Double)
     };
-    let theta = Tensor::from(0.2f64).set_requires_grad(true);
-    phi(&theta).backward();
-    let grad = theta.grad().double_value(&[]);
+    let mean = |theta: f64| {
+        let p = phi(&Var::constant(vec![theta; scenes.len()], scenes.len(), 1));
+        p.values().iter().sum::<f64>() / scenes.len() as f64
+    };
+    tape::start();
+    let theta = Var::leaf(vec![0.2; scenes.len()], scenes.len(), 1);
+    let root = phi(&theta);
+    let grads = tape::backward(&root, vec![1.0 / scenes.len() as f64; scenes.len()]);
+    let grad: f64 = grads
+        .of(&theta)
+        .expect("the potential depends on theta")
+        .iter()
+        .sum();
     let h = 1e-5;
-    let fd = tch::no_grad(|| {
-        (phi(&Tensor::from(0.2 + h)).double_value(&[]) - phi(&Tensor::from(0.2 - h)).double_value(&[]))
-            / (2.0 * h)
-    });
+    let fd = (mean(0.2 + h) - mean(0.2 - h)) / (2.0 * h);
     assert!(grad.is_finite() && grad != 0.0);
     assert!(
         (grad - fd).abs() < 1e-5 * fd.abs().max(1.0),
-        "autograd {grad} vs finite difference {fd}"
+        "tape gradient {grad} vs finite difference {fd}"
     );
 }
 
@@ -189,16 +195,14 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
             .chunks(9)
             .any(|a| a[0] != 0.0)
     }));
-    let t = tch::no_grad(|| {
-        let run = double(
-            steps,
-            true,
-            config.sim.terminate_on_collision,
-            tensor::Learning::Ego,
-        );
-        tensor::rollout(&config, &scenes, &run, |b, _, _| b.x.zeros_like())
-    });
-    let potential = Vec::<f64>::try_from(t.potential).unwrap();
+    let run = double(
+        steps,
+        true,
+        config.sim.terminate_on_collision,
+        tensor::Learning::Ego,
+    );
+    let t = tensor::rollout(&config, &scenes, &run, |b, _, _| b.x.full(0.0));
+    let potential = t.potential.values();
     for (k, o) in scalar.iter().enumerate() {
         let tol = 1e-6 * o.potential_return.abs().max(1.0);
         assert!((o.potential_return - potential[k]).abs() < tol, "scenario {k}");
@@ -209,7 +213,7 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
 fn engines_agree_in_merge_traffic_with_human_drivers() {
     // Traffic episodes (3 ramp vehicles, 10 in the target lane, IDM humans merging by the
     // gate) with a speed-keeping linear policy for the players: same returns and potential.
-    use mpgdrive::policy::observation::{Frame, Layout, tensor_observations};
+    use mpgdrive::policy::observation::{Frame, Layout, observation_rows, tensor_features};
     use mpgdrive::policy::{LinearPolicy, PolicyActor};
     let config = common::traffic();
     let scenes = sample_scenes(&config, 3, 0, 16);
@@ -224,19 +228,25 @@ fn engines_agree_in_merge_traffic_with_human_drivers() {
     let scalar = rollout(&config, &opts, &scenes, || {
         PolicyActor::new(&config, linear.clone(), Driver::Idm, true)
     });
-    let w = Tensor::from_slice(&linear.weights).to_kind(Kind::Double);
-    let t = tch::no_grad(|| {
-        tensor::rollout(
-            &config,
-            &scenes,
-            &double(steps, true, true, tensor::Learning::All),
-            |b, nb, _| {
-                let obs = tensor_observations(Layout::Traffic, Frame::of(&config), b, nb);
-                (obs.matmul(&w.to_kind(obs.kind())) + f64::from(linear.bias)).tanh() * f64::from(linear.scale)
-            },
-        )
-    });
-    let potential = Vec::<f64>::try_from(t.potential).unwrap();
+    let t = tensor::rollout(
+        &config,
+        &scenes,
+        &double(steps, true, true, tensor::Learning::All),
+        |b, nb, _| {
+            let features = tensor_features(Layout::Traffic, Frame::of(&config), b, nb);
+            let obs = observation_rows(Layout::Traffic, &features);
+            let actions = obs
+                .chunks(linear.weights.len())
+                .map(|row| {
+                    let z: f32 =
+                        row.iter().zip(&linear.weights).map(|(o, w)| o * w).sum::<f32>() + linear.bias;
+                    f64::from(z.tanh() * linear.scale)
+                })
+                .collect();
+            Var::constant(actions, b.x.rows(), b.x.cols())
+        },
+    );
+    let potential = t.potential.values();
     for (k, o) in scalar.iter().enumerate() {
         let tol = 1e-4 * o.potential_return.abs().max(1.0);
         assert!(

@@ -4,6 +4,7 @@
 
 pub mod outcome;
 pub mod rollout;
+pub mod tape;
 pub mod tensor;
 
 pub use outcome::{EpisodeOutcome, Trajectory};

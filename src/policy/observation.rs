@@ -340,16 +340,18 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
     }
 }
 
-/// Observations of every player of a tensor batch, `[batch, agents, obs_dim]`, from the same
-/// [`features`] as [`observe`] (differentiable in the states).
-pub fn tensor_observations(
+/// The features of every player of a tensor batch, one `[batch, agents]` array each, from
+/// the same [`features`] as [`observe`] (differentiable in the states). The one-hot agent
+/// index of the Table I layout is not among them: it is each element's column
+/// ([`observation_rows`]).
+pub fn tensor_features(
     layout: Layout,
     frame: Frame,
     batch: &crate::engine::tensor::TensorBatch,
     nb: &crate::engine::tensor::NeighborIndex,
-) -> tch::Tensor {
+) -> Vec<crate::engine::tape::Var> {
     use crate::engine::tensor::Which;
-    let mut f: Vec<tch::Tensor> = features(
+    let mut f: Vec<_> = features(
         frame.x_c,
         &batch.x,
         &batch.v,
@@ -358,28 +360,35 @@ pub fn tensor_observations(
         &nb.get(batch, Which::Follower),
     )
     .into();
-    match layout {
-        Layout::Table1 { .. } => {
-            let features = tch::Tensor::stack(&f, 2);
-            let size = batch.x.size();
-            let one_hot = tch::Tensor::eye(size[1], (batch.x.kind(), batch.x.device()))
-                .unsqueeze(0)
-                .expand([size[0], size[1], size[1]], false);
-            tch::Tensor::cat(&[features, one_hot], 2)
+    if layout == Layout::Traffic {
+        f.extend(ahead_features(
+            &batch.x,
+            &batch.v,
+            &nb.get(batch, Which::LaneLeader),
+        ));
+        f.push(match batch.per_scene(|d| d.unwrap_or(frame.v_desired)) {
+            Some(v_d) => batch.x.full(0.0).add(&v_d),
+            None => batch.x.full(frame.v_desired),
+        });
+    }
+    f
+}
+
+/// The observation rows (`[rows * cols, layout.dim()]`, row-major) of `features` (each
+/// `[rows, cols]`, as [`tensor_features`] gives them or a selection of their columns): an
+/// element's features, then for the Table I layout the one-hot index of its column.
+pub fn observation_rows(layout: Layout, features: &[crate::engine::tape::Var]) -> Vec<f32> {
+    let (elements, cols, dim) = (features[0].values().len(), features[0].cols(), layout.dim());
+    let mut out = vec![0.0f32; elements * dim];
+    for (k, row) in out.chunks_mut(dim).enumerate() {
+        for (slot, f) in row.iter_mut().zip(features) {
+            *slot = f.values()[k] as f32;
         }
-        Layout::Traffic => {
-            f.extend(ahead_features(
-                &batch.x,
-                &batch.v,
-                &nb.get(batch, Which::LaneLeader),
-            ));
-            let v_d = batch
-                .per_scene(|d| d.unwrap_or(frame.v_desired))
-                .unwrap_or_else(|| batch.x.narrow(1, 0, 1).full_like(frame.v_desired));
-            f.push(v_d.expand_as(&batch.x));
-            tch::Tensor::stack(&f, 2)
+        if layout.one_hot() > 0 {
+            row[layout.features() + k % cols] = 1.0;
         }
     }
+    out
 }
 
 #[cfg(test)]

@@ -17,19 +17,21 @@ use crate::atomic::with_suffix;
 use crate::config::Config;
 use crate::engine::outcome::EpisodeOutcome;
 use crate::engine::rollout::{Recording, RolloutOptions, rollout};
+use crate::engine::tape::{self, Var};
 use crate::engine::tensor::{self, idm_actions};
 use crate::eval::EpisodeMetrics;
+use crate::num::Num;
 use crate::policy::file::{self, PolicyError, Sidecar};
 pub use crate::policy::mode::Mode;
 use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::{BatchPolicy, PolicyActor};
-use crate::policy::observation::{Frame, Layout, observe, tensor_observations};
+use crate::policy::observation::{Frame, Layout, observe, tensor_features};
 use crate::world::drivers::Driver;
 use crate::world::neighbors::find_neighbors;
 use crate::world::sampler::{Purpose, purpose_seed, sample_scenes};
 use crate::world::state::Scene;
 use curves::EpochRecord;
-use stacked::StackedNet;
+use stacked::{ParamGrads, StackedNet};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -118,23 +120,26 @@ pub fn curves_path(out: &Path) -> PathBuf {
 fn tensor_actions(
     config: &Config,
     net: &StackedNet,
+    grads: &ParamGrads,
     mode: Mode,
     batch: &tensor::TensorBatch,
     nb: &tensor::NeighborIndex,
-) -> Tensor {
-    let obs = tensor_observations(Layout::of(config), Frame::of(config), batch, nb).to_kind(Kind::Float);
-    let (b, n, d) = (obs.size()[0], obs.size()[1], obs.size()[2]);
-    let members = net.members() as i64;
+) -> Var {
+    let layout = Layout::of(config);
+    let features = tensor_features(layout, Frame::of(config), batch, nb);
     match mode {
-        Mode::Mpg => net.forward(&obs.reshape([members, -1, d])).reshape([b, n]),
+        Mode::Mpg => net.act_on_tape(layout, &features, grads),
         Mode::Sarl => {
-            let ego = net
-                .forward(&obs.select(1, 0).reshape([members, -1, d]))
-                .reshape([b, 1]);
-            let others = idm_actions(config, batch, nb)
-                .to_kind(Kind::Float)
-                .narrow(1, 1, n - 1);
-            Tensor::cat(&[ego, others], 1)
+            let first: std::rc::Rc<[usize]> = [0].into();
+            let ego_features: Vec<Var> = features.iter().map(|f| f.select_cols(&first)).collect();
+            let ego = net.act_on_tape(layout, &ego_features, grads);
+            let (b, n) = (batch.x.rows(), batch.x.cols());
+            let is_ego = Var::constant(
+                (0..b * n).map(|k| f64::from(u8::from(k % n == 0))).collect(),
+                b,
+                n,
+            );
+            Var::select(&is_ego, &ego, &idm_actions(config, batch, nb))
         }
     }
 }
@@ -238,7 +243,6 @@ impl Stack {
             .flat_map(|&s| sample_scenes(config, purpose_seed(s, Purpose::Train), epoch * t.batch, t.batch))
             .collect();
         let run = tensor::TensorRun {
-            kind: Kind::Float,
             steps: config.n_steps(),
             feasibility: config.sim.feasibility,
             terminate_on_collision: config.sim.terminate_on_collision,
@@ -247,17 +251,23 @@ impl Stack {
                 Mode::Sarl => tensor::Learning::Ego,
             },
         };
+        let grads = ParamGrads::default();
+        tape::start();
         let out = tensor::rollout(config, &scenes, &run, |b, nb, _| {
-            tensor_actions(config, &self.net, self.mode, b, nb)
+            tensor_actions(config, &self.net, &grads, self.mode, b, nb)
         });
-        let per_episode = match self.mode {
-            Mode::Mpg => out.potential,
-            Mode::Sarl => out.returns.select(1, 0),
+        // Each member's objective: the mean over its scenes of the potential (MPG) or of the
+        // ego's return (SARL); the loss is minus their sum.
+        let (root, column) = match self.mode {
+            Mode::Mpg => (out.potential, 0),
+            Mode::Sarl => (out.returns, 0),
         };
-        let objectives = per_episode
-            .reshape([self.seeds.len() as i64, t.batch as i64])
-            .mean_dim(1, false, Kind::Float);
-        let values = Vec::<f64>::try_from(objectives.to_kind(Kind::Double)).expect("a CPU tensor");
+        let cols = root.cols();
+        let per_episode: Vec<f64> = root.values().iter().skip(column).step_by(cols).copied().collect();
+        let values: Vec<f64> = per_episode
+            .chunks(t.batch)
+            .map(|c| c.iter().sum::<f64>() / t.batch as f64)
+            .collect();
         let diverged = |k: usize, value: f64| TrainError::Diverged {
             seed: self.seeds[k],
             epoch: epoch + 1,
@@ -266,8 +276,20 @@ impl Stack {
         if let Some(k) = values.iter().position(|v| !v.is_finite()) {
             return Err(diverged(k, values[k]));
         }
+        let seed = (0..root.values().len())
+            .map(|k| {
+                if k % cols == column {
+                    -1.0 / t.batch as f64
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        tape::backward(&root, seed);
         self.opt.zero_grad();
-        (-objectives.sum(Kind::Float)).backward();
+        if let Some(sums) = grads.borrow().as_ref() {
+            self.net.set_grads(sums);
+        }
         self.net.clip_grad_norm(t.grad_clip);
         self.opt.step();
         // A NaN gradient would poison the parameters without changing this epoch's objective.

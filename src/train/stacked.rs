@@ -11,9 +11,19 @@
 //! element-wise, so a member learns exactly what it would learn alone: `tests/train.rs` checks
 //! that a seed's curves do not depend on which other seeds train with it.
 
+use crate::engine::tape::Var;
 use crate::policy::network::{NetSpec, PolicyNet};
-use crate::policy::observation::BatchPolicy;
+use crate::policy::observation::{BatchPolicy, Layout, observation_rows};
+use std::cell::RefCell;
+use std::rc::Rc;
 use tch::{Kind, Tensor, nn};
+
+/// The gradient of each stacked parameter (as [`StackedNet`] holds them: per layer weight,
+/// then bias), summed over the steps of a rollout by [`StackedNet::act_on_tape`].
+pub type ParamGrads = Rc<RefCell<Option<Vec<Tensor>>>>;
+
+/// libtorch's default slope of `leaky_relu` below 0.
+const LEAKY_SLOPE: f64 = 0.01;
 
 /// The PolicyNet variables of each layer, in order.
 const LAYERS: [&str; 3] = ["hidden1", "hidden2", "output"];
@@ -82,6 +92,79 @@ impl StackedNet {
         let (w, b) = &self.layers[2];
         let z = (x * w.transpose(1, 2)).sum_dim_intlist(-1, false, None) + b.squeeze_dim(-1);
         z.tanh() * self.spec.action_scale
+    }
+
+    /// The actions of every element of `features` (one `[rows, cols]` array per feature; the
+    /// rows split evenly among the members, in member order) as one node of the tape: the
+    /// forward pass now, without libtorch's autograd; when the tape runs back, the backward
+    /// pass by hand, into the features and into `grads`.
+    pub fn act_on_tape(&self, layout: Layout, features: &[Var], grads: &ParamGrads) -> Var {
+        let (rows, cols) = (features[0].rows(), features[0].cols());
+        let dim = self.spec.obs_dim as i64;
+        let obs = Tensor::from_slice(&observation_rows(layout, features)).reshape([self.members, -1, dim]);
+        let w: Vec<Tensor> = self.params().map(Tensor::detach).collect();
+        let (x0, h1, h2, t) = tch::no_grad(|| {
+            let x0 = obs * &self.scale;
+            let h1 = w[1].baddbmm(&x0, &w[0], 1.0, 1.0).leaky_relu();
+            let h2 = w[3].baddbmm(&h1, &w[2], 1.0, 1.0).leaky_relu();
+            let z = (&h2 * w[4].transpose(1, 2)).sum_dim_intlist(-1, false, None) + w[5].squeeze_dim(-1);
+            (x0, h1, h2, z.tanh())
+        });
+        let scale = self.spec.action_scale;
+        let actions = Vec::<f32>::try_from((&t * scale).flatten(0, -1)).expect("a CPU float tensor");
+        let (input_scale, grads) = (self.scale.shallow_clone(), grads.clone());
+        let n_features = features.len();
+        Var::source(
+            &features.iter().collect::<Vec<_>>(),
+            actions.into_iter().map(f64::from).collect(),
+            rows,
+            cols,
+            move |g| {
+                let d = tch::no_grad(|| {
+                    let g = Tensor::from_slice(g).to_kind(Kind::Float).reshape(t.size());
+                    // The layers' outputs are positive exactly where their inputs are.
+                    let leaky =
+                        |out: &Tensor, grad: &Tensor| out.leaky_relu_backward(grad, LEAKY_SLOPE, true);
+                    let gz: Tensor = g * scale * (1.0 - t.square()); // [m, r]
+                    let dw3 = (&h2 * gz.unsqueeze(-1))
+                        .sum_dim_intlist(1, false, None)
+                        .unsqueeze(-1);
+                    let db3 = gz.sum_dim_intlist(1, true, None).unsqueeze(-1);
+                    let dh2 = leaky(&h2, &(gz.unsqueeze(-1) * w[4].transpose(1, 2)));
+                    let dw2 = h1.transpose(1, 2).bmm(&dh2);
+                    let db2 = dh2.sum_dim_intlist(1, true, None);
+                    let dh1 = leaky(&h1, &dh2.bmm(&w[2].transpose(1, 2)));
+                    let dw1 = x0.transpose(1, 2).bmm(&dh1);
+                    let db1 = dh1.sum_dim_intlist(1, true, None);
+                    let d_obs = dh1.bmm(&w[0].transpose(1, 2)) * &input_scale;
+                    let step = [dw1, db1, dw2, db2, dw3, db3];
+                    let mut sums = grads.borrow_mut();
+                    match sums.as_mut() {
+                        Some(sums) => sums.iter_mut().zip(&step).for_each(|(s, d)| {
+                            let _ = s.g_add_(d);
+                        }),
+                        None => *sums = Some(step.into()),
+                    }
+                    d_obs
+                });
+                let d = Vec::<f32>::try_from(d.flatten(0, -1)).expect("a CPU float tensor");
+                let dim = dim as usize;
+                (0..n_features)
+                    .map(|j| Some(d.iter().skip(j).step_by(dim).map(|&x| f64::from(x)).collect()))
+                    .collect()
+            },
+        )
+    }
+
+    /// Sets each parameter's gradient to `grads` (as [`ParamGrads`] sums them).
+    pub fn set_grads(&self, grads: &[Tensor]) {
+        let surrogate = self
+            .params()
+            .zip(grads)
+            .map(|(p, g)| (p * g.detach()).sum(Kind::Float))
+            .reduce(|a, b| a + b)
+            .expect("three layers");
+        surrogate.backward();
     }
 
     /// A frozen copy of the current weights (for rollouts without gradient).
@@ -174,5 +257,73 @@ impl BatchPolicy for StackedNet {
         let actions = tch::no_grad(|| self.forward(&input)).flatten(0, -1);
         let values = Vec::<f32>::try_from(actions).expect("a CPU float tensor");
         out[..rows].copy_from_slice(&values);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::tape;
+    use crate::num::Num;
+
+    #[test]
+    fn the_backward_pass_by_hand_matches_autograd() {
+        // Two members of the Table I layout, 2 scenes x 3 players each; features are leaves
+        // of the tape, the upstream gradient is arbitrary. libtorch's autograd on the same
+        // forward pass gives the reference gradients of the inputs and the weights.
+        let layout = Layout::Table1 { players: 3 };
+        let spec = NetSpec::new(layout, 8, 9.81);
+        let net = StackedNet::from_nets(&[PolicyNet::seeded(spec.clone(), 1), PolicyNet::seeded(spec, 2)]);
+        let (rows, cols) = (4, 3);
+        let features: Vec<Var> = (0..layout.features())
+            .map(|j| {
+                let values = (0..rows * cols)
+                    .map(|k| ((j * 7 + k * 3) % 11) as f64 * 4.5 - 20.0)
+                    .collect();
+                Var::leaf(values, rows, cols)
+            })
+            .collect();
+        let upstream: Vec<f64> = (0..rows * cols).map(|k| (k as f64 - 5.5) * 0.3).collect();
+        let grads = ParamGrads::default();
+        let actions = net.act_on_tape(layout, &features, &grads);
+        // A second call adds its step to the sums, as the steps of a rollout do.
+        let twice = actions.add(&net.act_on_tape(layout, &features, &grads));
+        let by_hand = tape::backward(&twice, upstream.clone());
+
+        let obs = Tensor::from_slice(&observation_rows(layout, &features))
+            .reshape([2, -1, layout.dim() as i64])
+            .set_requires_grad(true);
+        let g = Tensor::from_slice(&upstream)
+            .to_kind(Kind::Float)
+            .reshape([2, -1]);
+        let forward = net.forward(&obs);
+        let reference: Vec<f32> = Vec::try_from(forward.flatten(0, -1)).expect("floats");
+        for (a, b) in actions.values().iter().zip(&reference) {
+            assert!((a - f64::from(*b)).abs() < 1e-6, "forward {a} vs {b}");
+        }
+        (forward * g * 2.0).sum(Kind::Float).backward();
+        let close = |ours: &[f32], theirs: &[f32], what: &str| {
+            for (a, b) in ours.iter().zip(theirs) {
+                assert!((a - b).abs() <= 1e-5 * b.abs().max(1.0), "{what}: {a} vs {b}");
+            }
+        };
+        let d_obs: Vec<f32> = Vec::try_from(obs.grad().flatten(0, -1)).expect("floats");
+        for (j, f) in features.iter().enumerate() {
+            let ours: Vec<f32> = by_hand
+                .of(f)
+                .expect("a gradient")
+                .iter()
+                .map(|&x| x as f32)
+                .collect();
+            let theirs: Vec<f32> = d_obs.iter().skip(j).step_by(layout.dim()).copied().collect();
+            close(&ours, &theirs, "input");
+        }
+        let sums = grads.borrow();
+        for (p, ours) in net.params().zip(sums.as_ref().expect("gradients")) {
+            let ours: Vec<f32> = Vec::try_from(ours.flatten(0, -1)).expect("floats");
+            let theirs: Vec<f32> = Vec::try_from(p.grad().flatten(0, -1)).expect("floats");
+            assert_eq!(ours.len(), theirs.len());
+            close(&ours, &theirs, "weight");
+        }
     }
 }
