@@ -2,6 +2,7 @@
 //! replay of the paper's tables, the MPG check) and the batched tensor loop (training), with
 //! one set of equations for both.
 
+pub mod dual;
 pub mod outcome;
 pub mod rollout;
 pub mod tape;

@@ -13,6 +13,7 @@
 //! constant. Shapes broadcast in one way only: an operand of one column stands for every
 //! column of the other.
 
+use crate::engine::dual::Dual;
 use crate::num::Num;
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -180,6 +181,35 @@ impl Var {
     pub fn select_cols(&self, columns: &Rc<[usize]>) -> Var {
         let index: Vec<usize> = (0..self.rows).flat_map(|_| columns.iter().copied()).collect();
         self.gather_cols(&index.into())
+    }
+
+    /// `f` of `K` arrays, element by element on [`Dual`] numbers (`f` also gets the element's
+    /// index): one node that keeps each element's `K` partial derivatives instead of one node
+    /// per operation of `f`. The arrays have one shape, or single columns that broadcast.
+    pub fn fused<const K: usize>(inputs: [&Var; K], f: impl Fn(usize, [Dual<K>; K]) -> Dual<K>) -> Var {
+        let cols = inputs.iter().fold(1, |c, v| broadcast(inputs[0], v).1.max(c));
+        let inputs = inputs.map(|v| v.expand(cols));
+        let (rows, n) = (inputs[0].rows, inputs[0].value.len());
+        let mut value = Vec::with_capacity(n);
+        let mut partials = Vec::with_capacity(n * K);
+        for k in 0..n {
+            let out = f(k, std::array::from_fn(|i| Dual::input(inputs[i].value[k], i)));
+            value.push(out.v);
+            partials.extend_from_slice(&out.d);
+        }
+        let tracked = inputs.each_ref().map(Var::tracked);
+        Var::custom(&inputs.each_ref(), value, rows, cols, move |g| {
+            (0..K)
+                .map(|i| {
+                    tracked[i].then(|| {
+                        g.iter()
+                            .zip(partials.chunks(K))
+                            .map(|(&g, p)| if g == 0.0 { 0.0 } else { g * p[i] })
+                            .collect()
+                    })
+                })
+                .collect()
+        })
     }
 
     /// `out[r, i]`: the sum of `self[r, p]` over the pairs `p` that hold `i` (`n` columns).

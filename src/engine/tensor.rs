@@ -324,10 +324,15 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     let own = speed.add(&terms::comfort(u).mul_c(r.w_comfort));
     let ends = |t: &Var| (t.select_cols(&pairs.first), t.select_cols(&pairs.second));
     let ((xi, xj), (vi, vj), (ri, rj)) = (ends(&batch.x), ends(&batch.v), ends(&batch.on_ramp));
-    let same_lane = ri.sub(&rj).abs().neg().add_c(1.0);
-    let ttc = terms::same_lane_ttc(&xi, &vi, &xj, &vj, r.v_c, r.epsilon).mul_c(r.w_ttc);
-    let gap = terms::conflict_time_gap(&xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict);
-    let pair = Var::select(&same_lane, &ttc, &gap);
+    let same_lane: Vec<bool> = ri.values().iter().zip(rj.values()).map(|(a, b)| a == b).collect();
+    // Each pair's term in one pass over the pairs (the generic terms on dual numbers).
+    let pair = Var::fused([&xi, &vi, &xj, &vj], |k, [xi, vi, xj, vj]| {
+        if same_lane[k] {
+            terms::same_lane_ttc(&xi, &vi, &xj, &vj, r.v_c, r.epsilon).mul_c(r.w_ttc)
+        } else {
+            terms::conflict_time_gap(&xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict)
+        }
+    });
     let reward = own.add(&pair.pair_sums(&pairs.both, pairs.n));
     // Humans are no players: the potential holds the players' own terms and every pair with
     // at least one player (Theorem 3 over the players; a human's terms are not in any
