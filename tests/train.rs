@@ -91,7 +91,8 @@ fn training_is_reproducible_for_a_seed() {
 #[test]
 fn a_seed_learns_the_same_alone_or_beside_other_seeds() {
     // Seeds train side by side in stacked computations; each member's arithmetic is its own,
-    // so seed 3 alone and seed 3 beside seeds 1 and 4 (on two workers) give the same bits.
+    // so seed 3 alone (one thread) and seed 3 beside seeds 1 and 4 (two threads, one shard
+    // each) give the same bits.
     let mut config = smoke();
     config.train.epochs = 3;
     let alone = out_dir("alone");
@@ -108,7 +109,7 @@ fn a_seed_learns_the_same_alone_or_beside_other_seeds() {
     };
     let mut seen = Vec::new();
     let one = train_all(&config, &runs(&alone, &[3]), &NO_STOP, &mut |_, _| {}).unwrap();
-    // Two workers: seeds 1 and 3 in one stack, seed 4 in the other.
+    // Two threads, each running one shard of every seed's minibatch and probe set.
     let mut two_workers = config.clone();
     two_workers.train.threads = 2;
     let three = train_all(

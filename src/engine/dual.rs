@@ -104,14 +104,20 @@ impl<const K: usize> Num for Dual<K> {
         match self.v.partial_cmp(&o.v) {
             Some(std::cmp::Ordering::Less) => *self,
             Some(std::cmp::Ordering::Equal) => self.combine(*o, self.v, 0.5, 0.5),
-            _ => Dual { v: self.v.min(o.v), ..*o },
+            _ => Dual {
+                v: self.v.min(o.v),
+                ..*o
+            },
         }
     }
     fn max(&self, o: &Self) -> Self {
         match self.v.partial_cmp(&o.v) {
             Some(std::cmp::Ordering::Greater) => *self,
             Some(std::cmp::Ordering::Equal) => self.combine(*o, self.v, 0.5, 0.5),
-            _ => Dual { v: self.v.max(o.v), ..*o },
+            _ => Dual {
+                v: self.v.max(o.v),
+                ..*o
+            },
         }
     }
     fn clamp_c(&self, lo: f64, hi: f64) -> Self {

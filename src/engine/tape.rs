@@ -212,6 +212,43 @@ impl Var {
         })
     }
 
+    /// `out[r, p] = f(r, p, [x_i, v_i, x_j, v_j])` for the pairs `p = (i, j)` of columns of
+    /// two arrays of one shape, on [`Dual`] numbers: one node that keeps the four partial
+    /// derivatives of each pair's value.
+    pub fn pairwise(
+        x: &Var,
+        v: &Var,
+        pairs: &Rc<[(usize, usize)]>,
+        f: impl Fn(usize, usize, [Dual<4>; 4]) -> Dual<4>,
+    ) -> Var {
+        assert!(x.rows == v.rows && x.cols == v.cols, "two arrays of one shape");
+        let (rows, n, np) = (x.rows, x.cols, pairs.len());
+        let mut value = Vec::with_capacity(rows * np);
+        let mut partials = Vec::with_capacity(rows * np * 4);
+        for (r, (xr, vr)) in x.value.chunks(n).zip(v.value.chunks(n)).enumerate() {
+            for (p, &(i, j)) in pairs.iter().enumerate() {
+                let inputs = [xr[i], vr[i], xr[j], vr[j]];
+                let out = f(r, p, std::array::from_fn(|k| Dual::input(inputs[k], k)));
+                value.push(out.v);
+                partials.extend_from_slice(&out.d);
+            }
+        }
+        let pairs = pairs.clone();
+        Var::custom(&[x, v], value, rows, np, move |g| {
+            let (mut gx, mut gv) = (vec![0.0; rows * n], vec![0.0; rows * n]);
+            let blocks = g.chunks(np).zip(partials.chunks(np * 4));
+            for (r, (g, d)) in blocks.enumerate() {
+                for ((&(i, j), &g), d) in pairs.iter().zip(g).zip(d.chunks(4)) {
+                    gx[r * n + i] += g * d[0];
+                    gv[r * n + i] += g * d[1];
+                    gx[r * n + j] += g * d[2];
+                    gv[r * n + j] += g * d[3];
+                }
+            }
+            vec![Some(gx), Some(gv)]
+        })
+    }
+
     /// `out[r, i]`: the sum of `self[r, p]` over the pairs `p` that hold `i` (`n` columns).
     pub fn pair_sums(&self, pairs: &Rc<[(usize, usize)]>, n: usize) -> Var {
         let (rows, np) = (self.rows, self.cols);

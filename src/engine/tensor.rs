@@ -292,21 +292,25 @@ fn merge_gate(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
 #[derive(Debug)]
 pub struct Pairs {
     n: usize,
-    first: Rc<[usize]>,
-    second: Rc<[usize]>,
     both: Rc<[(usize, usize)]>,
 }
 
 impl Pairs {
     /// The pairs of `n` players.
     pub fn new(n: usize) -> Self {
-        let both: Vec<(usize, usize)> = (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect();
         Pairs {
             n,
-            first: both.iter().map(|p| p.0).collect(),
-            second: both.iter().map(|p| p.1).collect(),
-            both: both.into(),
+            both: (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j))).collect(),
         }
+    }
+
+    /// `[rows, pairs]`: `f` of the two ends' values of a `[rows, n]` array (no gradient).
+    fn of_ends(&self, t: &Var, f: impl Fn(f64, f64) -> f64) -> Vec<f64> {
+        let f = &f;
+        t.values()
+            .chunks(self.n)
+            .flat_map(|row| self.both.iter().map(move |&(i, j)| f(row[i], row[j])))
+            .collect()
     }
 }
 
@@ -322,12 +326,11 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
         _ => terms::speed_tracking(&batch.v, r.v_desired).mul_c(r.w_speed),
     };
     let own = speed.add(&terms::comfort(u).mul_c(r.w_comfort));
-    let ends = |t: &Var| (t.select_cols(&pairs.first), t.select_cols(&pairs.second));
-    let ((xi, xj), (vi, vj), (ri, rj)) = (ends(&batch.x), ends(&batch.v), ends(&batch.on_ramp));
-    let same_lane: Vec<bool> = ri.values().iter().zip(rj.values()).map(|(a, b)| a == b).collect();
+    let same_lane = pairs.of_ends(&batch.on_ramp, |a, b| f64::from(u8::from(a == b)));
+    let np = pairs.both.len();
     // Each pair's term in one pass over the pairs (the generic terms on dual numbers).
-    let pair = Var::fused([&xi, &vi, &xj, &vj], |k, [xi, vi, xj, vj]| {
-        if same_lane[k] {
+    let pair = Var::pairwise(&batch.x, &batch.v, &pairs.both, |row, p, [xi, vi, xj, vj]| {
+        if same_lane[row * np + p] > 0.5 {
             terms::same_lane_ttc(&xi, &vi, &xj, &vj, r.v_c, r.epsilon).mul_c(r.w_ttc)
         } else {
             terms::conflict_time_gap(&xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict)
@@ -337,11 +340,10 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     // Humans are no players: the potential holds the players' own terms and every pair with
     // at least one player (Theorem 3 over the players; a human's terms are not in any
     // player's reward).
-    let (hi, hj) = ends(&batch.human);
     let player = batch.human.neg().add_c(1.0);
-    let own_players = own.mul(&player);
-    let pairs_with_a_player = pair.mul(&hi.mul(&hj).neg().add_c(1.0));
-    let potential = own_players.sum_cols().add(&pairs_with_a_player.sum_cols());
+    let with_a_player = pairs.of_ends(&batch.human, |a, b| 1.0 - a * b);
+    let pairs_with_a_player = pair.mul(&Var::constant(with_a_player, pair.rows(), np));
+    let potential = own.mul(&player).sum_cols().add(&pairs_with_a_player.sum_cols());
     (reward, potential)
 }
 

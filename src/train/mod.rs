@@ -233,7 +233,7 @@ impl Stack {
 
     /// One epoch of Algorithm 1 for every member: gradient ascent on its objective over its
     /// minibatch of training states (the learning-rate schedule of `epoch`), all members in
-    /// one rollout. Returns each member's minibatch objective.
+    /// one rollout per shard ([`SHARDS`]). Returns each member's minibatch objective.
     fn gradient_step(&mut self, config: &Config, epoch: usize) -> Result<Vec<f64>, TrainError> {
         let t = &config.train;
         self.opt.set_lr(learning_rate(t, epoch));
@@ -242,32 +242,21 @@ impl Stack {
             .iter()
             .flat_map(|&s| sample_scenes(config, purpose_seed(s, Purpose::Train), epoch * t.batch, t.batch))
             .collect();
-        let run = tensor::TensorRun {
-            steps: config.n_steps(),
-            feasibility: config.sim.feasibility,
-            terminate_on_collision: config.sim.terminate_on_collision,
-            learning: match self.mode {
-                Mode::Mpg => tensor::Learning::All,
-                Mode::Sarl => tensor::Learning::Ego,
-            },
-        };
-        let grads = ParamGrads::default();
-        tape::start();
-        let out = tensor::rollout(config, &scenes, &run, |b, nb, _| {
-            tensor_actions(config, &self.net, &grads, self.mode, b, nb)
+        let members = self.seeds.len();
+        let shards = shards_of(&self.net, &scenes, members);
+        let results = in_shards(t.threads, shards, |(net, scenes)| {
+            shard_gradient(config, self.mode, &net, &scenes, members)
         });
-        // Each member's objective: the mean over its scenes of the potential (MPG) or of the
-        // ego's return (SARL); the loss is minus their sum.
-        let (root, column) = match self.mode {
-            Mode::Mpg => (out.potential, 0),
-            Mode::Sarl => (out.returns, 0),
-        };
-        let cols = root.cols();
-        let per_episode: Vec<f64> = root.values().iter().skip(column).step_by(cols).copied().collect();
-        let values: Vec<f64> = per_episode
-            .chunks(t.batch)
-            .map(|c| c.iter().sum::<f64>() / t.batch as f64)
-            .collect();
+        let mut values = vec![0.0; members];
+        let mut sums: Option<Vec<Tensor>> = None;
+        for (objectives, grads) in results {
+            values.iter_mut().zip(objectives).for_each(|(v, o)| *v += o);
+            sums = match (sums, grads) {
+                (Some(a), Some(b)) => Some(a.iter().zip(&b).map(|(a, b)| a + b).collect()),
+                (a, b) => a.or(b),
+            };
+        }
+        values.iter_mut().for_each(|v| *v /= t.batch as f64);
         let diverged = |k: usize, value: f64| TrainError::Diverged {
             seed: self.seeds[k],
             epoch: epoch + 1,
@@ -276,19 +265,9 @@ impl Stack {
         if let Some(k) = values.iter().position(|v| !v.is_finite()) {
             return Err(diverged(k, values[k]));
         }
-        let seed = (0..root.values().len())
-            .map(|k| {
-                if k % cols == column {
-                    -1.0 / t.batch as f64
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        tape::backward(&root, seed);
         self.opt.zero_grad();
-        if let Some(sums) = grads.borrow().as_ref() {
-            self.net.set_grads(sums);
+        if let Some(sums) = sums {
+            self.net.set_grads(&sums);
         }
         self.net.clip_grad_norm(t.grad_clip);
         self.opt.step();
@@ -300,22 +279,145 @@ impl Stack {
     }
 }
 
+/// Every member's minibatch and probe set run as this many shards, each the same block of
+/// every member's scenes on its own thread and tape. Their gradients add up in shard order,
+/// so the weights do not depend on how many threads run the shards (`train.threads`).
+pub const SHARDS: usize = 2;
+
+/// The shards of `scenes` (each member's in turn, as many for each) that hold scenes, each
+/// with its own copy of the networks.
+fn shards_of(net: &StackedNet, scenes: &[Scene], members: usize) -> Vec<(StackedNet, Vec<Scene>)> {
+    let per_member = scenes.len() / members;
+    let size = per_member.div_ceil(SHARDS);
+    (0..SHARDS)
+        .map(|k| (k * size).min(per_member)..((k + 1) * size).min(per_member))
+        .filter(|range| !range.is_empty())
+        .map(|range| {
+            let block = scenes
+                .chunks(per_member)
+                .flat_map(|own| own[range.clone()].iter().cloned())
+                .collect();
+            (net.snapshot(), block)
+        })
+        .collect()
+}
+
+/// Runs `work` on every shard, the first on the calling thread and the others on their own
+/// threads when `threads` > 1, each with one libtorch thread. Results in shard order.
+fn in_shards<T: Send, R: Send>(threads: usize, shards: Vec<T>, work: impl Fn(T) -> R + Sync) -> Vec<R> {
+    tch::set_num_threads(1);
+    if threads <= 1 {
+        return shards.into_iter().map(work).collect();
+    }
+    std::thread::scope(|s| {
+        let work = &work;
+        let mut shards = shards.into_iter();
+        let first = shards.next();
+        let others: Vec<_> = shards
+            .map(|shard| {
+                s.spawn(move || {
+                    // A new thread starts with libtorch's default thread count.
+                    tch::set_num_threads(1);
+                    work(shard)
+                })
+            })
+            .collect();
+        first
+            .map(work)
+            .into_iter()
+            .chain(
+                others
+                    .into_iter()
+                    .map(|h| h.join().expect("a training shard panicked")),
+            )
+            .collect()
+    })
+}
+
+/// One shard's part of a gradient step: each member's summed objective over its scenes of
+/// the shard, and the gradients of minus the members' mean objectives (over the whole
+/// minibatch, `train.batch` scenes each) restricted to these scenes.
+fn shard_gradient(
+    config: &Config,
+    mode: Mode,
+    net: &StackedNet,
+    scenes: &[Scene],
+    members: usize,
+) -> (Vec<f64>, Option<Vec<Tensor>>) {
+    let run = tensor::TensorRun {
+        steps: config.n_steps(),
+        feasibility: config.sim.feasibility,
+        terminate_on_collision: config.sim.terminate_on_collision,
+        learning: match mode {
+            Mode::Mpg => tensor::Learning::All,
+            Mode::Sarl => tensor::Learning::Ego,
+        },
+    };
+    let grads = ParamGrads::default();
+    tape::start();
+    let out = tensor::rollout(config, scenes, &run, |b, nb, _| {
+        tensor_actions(config, net, &grads, mode, b, nb)
+    });
+    // The objective of an episode: its potential (MPG) or the ego's return (SARL).
+    let root = match mode {
+        Mode::Mpg => out.potential,
+        Mode::Sarl => out.returns,
+    };
+    let cols = root.cols();
+    let sums = root
+        .values()
+        .chunks(cols * scenes.len() / members)
+        .map(|own| own.iter().step_by(cols).sum())
+        .collect();
+    let weight = -1.0 / config.train.batch as f64;
+    let seed = (0..root.values().len())
+        .map(|k| if k % cols == 0 { weight } else { 0.0 })
+        .collect();
+    tape::backward(&root, seed);
+    (sums, grads.take())
+}
+
 /// Rolls every member out on its probe states (`probe`: each member's scenes in turn, as
 /// many for each) in the scalar engine, the members' networks in one batched call per step.
 /// Returns the outcomes, member after member.
 fn probe_outcomes(config: &Config, mode: Mode, net: &StackedNet, probe: &[Scene]) -> Vec<EpisodeOutcome> {
-    // One worker: the batched call needs every member's rows (the member count sets the
-    // work per call, not the thread count).
     let opts = RolloutOptions {
         threads: 1,
         recording: Recording::Summary,
         ..RolloutOptions::from_config(config)
     };
-    let frozen = Mutex::new(Some(net.snapshot()));
-    rollout(config, &opts, probe, || {
-        let net = frozen.lock().expect("probe lock").take().expect("one worker");
-        PolicyActor::new(config, net, Driver::Idm, mode == Mode::Mpg)
-    })
+    let members = net.members();
+    let shards = in_shards(
+        config.train.threads,
+        shards_of(net, probe, members),
+        |(net, scenes)| {
+            let frozen = Mutex::new(Some(net));
+            // One rollout worker: the batched call needs every member's rows.
+            rollout(config, &opts, &scenes, || {
+                let net = frozen.lock().expect("probe lock").take().expect("one worker");
+                PolicyActor::new(config, net, Driver::Idm, mode == Mode::Mpg)
+            })
+        },
+    );
+    // Member after member: its outcomes of each shard in turn.
+    let mut outcomes = Vec::with_capacity(probe.len());
+    let mut parts: Vec<_> = shards
+        .into_iter()
+        .map(|o| {
+            let per_member = o.len() / members;
+            let mut o = o.into_iter();
+            (0..members)
+                .map(|_| o.by_ref().take(per_member).collect::<Vec<_>>())
+                .collect::<Vec<_>>()
+                .into_iter()
+        })
+        .collect();
+    for _ in 0..members {
+        for part in &mut parts {
+            outcomes.extend(part.next().expect("one block per member"));
+        }
+    }
+    outcomes
 }
 
 /// Each member's mean objective over its probe outcomes.
@@ -418,21 +520,14 @@ fn screen_inits(config: &Config, mode: Mode, seeds: &[u64]) -> Result<Vec<InitSc
         .flat_map(|&seed| (0..t.init_candidates).map(move |c| (seed, c)))
         .map(|(seed, c)| (PolicyNet::seeded(spec.clone(), init_seed(seed, c)), seed))
         .collect();
-    let objectives = in_workers(
-        t.threads,
-        members,
-        |_, share: Vec<(PolicyNet, u64)>, _: &dyn Fn(())| {
-            let (nets, seeds): (Vec<PolicyNet>, Vec<u64>) = share.into_iter().unzip();
-            let mut stack = Stack::new(config, mode, &nets, seeds)?;
-            for epoch in 0..t.screen_epochs {
-                stack.gradient_step(config, epoch)?;
-            }
-            let probe_set = member_seeds_probe(config, &stack.seeds);
-            let outcomes = probe_outcomes(config, mode, &stack.net, &probe_set);
-            Ok(mean_objectives(mode, &outcomes, nets.len()))
-        },
-        &mut |()| {},
-    )?;
+    let (nets, seeds): (Vec<PolicyNet>, Vec<u64>) = members.into_iter().unzip();
+    let mut stack = Stack::new(config, mode, &nets, seeds)?;
+    for epoch in 0..t.screen_epochs {
+        stack.gradient_step(config, epoch)?;
+    }
+    let probe_set = member_seeds_probe(config, &stack.seeds);
+    let outcomes = probe_outcomes(config, mode, &stack.net, &probe_set);
+    let objectives = mean_objectives(mode, &outcomes, nets.len());
     let screenings = objectives
         .chunks(t.init_candidates)
         .map(|probe_objectives| InitScreening {
@@ -547,6 +642,7 @@ fn keep_freed_memory() {
         // largest tensor; setting it also stops glibc from moving it.
         libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
         libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
+        libc::mallopt(libc::M_ARENA_MAX, 1);
     }
 }
 
@@ -618,7 +714,9 @@ pub fn train_all(
             .iter()
             .map(|&r| (&runs[r], starts[r].take().expect("one group per run")))
             .collect();
-        let outcomes = train_group(config, members, stop, &mut |k, record| on_epoch(group[k], record))?;
+        let outcomes = train_members(config, &members, stop, &mut |k, record| {
+            on_epoch(group[k], record)
+        })?;
         for (&r, outcome) in group.iter().zip(outcomes) {
             finished[r] = Some(outcome);
         }
@@ -627,86 +725,6 @@ pub fn train_all(
         .into_iter()
         .map(|o| o.expect("every run in a group"))
         .collect())
-}
-
-/// Runs `work` on contiguous shares of `items`, one share per worker thread (at most
-/// `workers`, each with one libtorch thread), and returns the results in the order of the
-/// items. `work` gets the index of its first item, its share and a reporter whose messages
-/// reach `on_report` on the calling thread as they come (with one worker, the work runs on the
-/// calling thread and each report is handled before it goes on). Training's members do not depend on
-/// each other, so the split changes nothing but the wall time.
-fn in_workers<T: Send, R: Send, M: Send>(
-    workers: usize,
-    items: Vec<T>,
-    work: impl Fn(usize, Vec<T>, &dyn Fn(M)) -> Result<Vec<R>, TrainError> + Sync,
-    on_report: &mut dyn FnMut(M),
-) -> Result<Vec<R>, TrainError> {
-    let share = items.len().div_ceil(workers.clamp(1, items.len().max(1)));
-    if share >= items.len() {
-        // One worker: this thread, so that `on_report` runs before the work goes on.
-        tch::set_num_threads(1);
-        let on_report = std::cell::RefCell::new(on_report);
-        return work(0, items, &|m| (on_report.borrow_mut())(m));
-    }
-    let mut shares = Vec::new();
-    let mut items = items.into_iter();
-    loop {
-        let part: Vec<T> = items.by_ref().take(share).collect();
-        if part.is_empty() {
-            break;
-        }
-        shares.push(part);
-    }
-    let (tx, rx) = std::sync::mpsc::channel::<M>();
-    std::thread::scope(|s| {
-        let work = &work;
-        let handles: Vec<_> = shares
-            .into_iter()
-            .enumerate()
-            .map(|(w, part)| {
-                let tx = tx.clone();
-                s.spawn(move || {
-                    // A new thread starts with libtorch's default thread count.
-                    tch::set_num_threads(1);
-                    work(w * share, part, &|m| {
-                        let _ = tx.send(m);
-                    })
-                })
-            })
-            .collect();
-        drop(tx);
-        for m in rx {
-            on_report(m);
-        }
-        let mut results = Vec::new();
-        let mut interrupted = None;
-        for h in handles {
-            match h.join().expect("training worker panicked") {
-                Ok(r) => results.extend(r),
-                Err(e @ TrainError::Interrupted { .. }) => interrupted = interrupted.or(Some(e)),
-                Err(e) => return Err(e),
-            }
-        }
-        interrupted.map_or(Ok(results), Err)
-    })
-}
-
-/// The training loop of runs of one mode that start at the same epoch, split among
-/// `train.threads` workers.
-fn train_group(
-    config: &Config,
-    members: Vec<(&TrainRun, Start)>,
-    stop: &AtomicBool,
-    on_epoch: &mut dyn FnMut(usize, &EpochRecord),
-) -> Result<Vec<TrainOutcome>, TrainError> {
-    in_workers(
-        config.train.threads,
-        members,
-        |first, share, report: &dyn Fn((usize, EpochRecord))| {
-            train_members(config, &share, stop, &mut |k, r| report((first + k, *r)))
-        },
-        &mut |(k, r)| on_epoch(k, &r),
-    )
 }
 
 /// The training loop of some runs of one mode that start at the same epoch, in one stack.
