@@ -243,9 +243,9 @@ pub struct TrainConfig {
     pub probe_scenarios: usize,
     /// Epochs between checkpoints.
     pub checkpoint_every: usize,
-    /// Worker threads: the runs (and screening candidates) are split among them, each worker
-    /// trains its share as one stacked computation with one libtorch thread. A run's result
-    /// does not depend on it.
+    /// Threads running the shards of every minibatch and probe set
+    /// ([`crate::train::SHARDS`], so more are not used), each with one libtorch thread. A
+    /// run's result does not depend on it.
     pub threads: usize,
     /// Initialisations screened before training (1: none; the run's own seed).
     #[serde(default = "one")]
