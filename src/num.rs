@@ -1,13 +1,13 @@
-//! One set of equations, two number types.
+//! One set of equations, three number types.
 //!
 //! The dynamics (eq. 1), the feasibility bounds, IDM and the reward terms are written once,
 //! generically over [`Num`]. `f64` runs them per agent in the fast scalar engine (evaluation,
-//! replay, co-simulation, the MPG check); `tch::Tensor` runs them on whole `[batch, agents]`
-//! tensors with autograd for training. Masks are numbers: 1.0 where a condition holds, else 0.0.
+//! replay, co-simulation, the MPG check); [`crate::engine::tape::Var`] runs them on whole
+//! `[batch, agents]` arrays with reverse-mode derivatives for training, and
+//! [`crate::engine::dual::Dual`] element by element with forward-mode ones (a pair's terms in
+//! one pass). Masks are numbers: 1.0 where a condition holds, else 0.0.
 
-use tch::Tensor;
-
-/// Element-wise arithmetic shared by `f64` and `tch::Tensor`.
+/// Element-wise arithmetic shared by `f64` and the training rollout's numbers.
 pub trait Num: Sized {
     /// A value of the same shape (and device/kind) as `self`, filled with `c`.
     fn full(&self, c: f64) -> Self;
@@ -64,36 +64,28 @@ pub trait Num: Sized {
     }
 }
 
-/// The operators both implementations spell the same way (`f64` and `Tensor` both implement
-/// the `std::ops` traits on references).
-macro_rules! arithmetic {
-    () => {
-        fn add(&self, o: &Self) -> Self {
-            self + o
-        }
-        fn sub(&self, o: &Self) -> Self {
-            self - o
-        }
-        fn mul(&self, o: &Self) -> Self {
-            self * o
-        }
-        fn div(&self, o: &Self) -> Self {
-            self / o
-        }
-        fn add_c(&self, c: f64) -> Self {
-            self + c
-        }
-        fn mul_c(&self, c: f64) -> Self {
-            self * c
-        }
-    };
-}
-
 impl Num for f64 {
     fn full(&self, c: f64) -> Self {
         c
     }
-    arithmetic!();
+    fn add(&self, o: &Self) -> Self {
+        self + o
+    }
+    fn sub(&self, o: &Self) -> Self {
+        self - o
+    }
+    fn mul(&self, o: &Self) -> Self {
+        self * o
+    }
+    fn div(&self, o: &Self) -> Self {
+        self / o
+    }
+    fn add_c(&self, c: f64) -> Self {
+        self + c
+    }
+    fn mul_c(&self, c: f64) -> Self {
+        self * c
+    }
     fn abs(&self) -> Self {
         f64::abs(*self)
     }
@@ -126,48 +118,5 @@ impl Num for f64 {
     }
     fn select(mask: &Self, a: &Self, b: &Self) -> Self {
         if *mask > 0.5 { *a } else { *b }
-    }
-}
-
-impl Num for Tensor {
-    fn full(&self, c: f64) -> Self {
-        self.full_like(c)
-    }
-    arithmetic!();
-    fn abs(&self) -> Self {
-        Tensor::abs(self)
-    }
-    fn sqrt(&self) -> Self {
-        Tensor::sqrt(self)
-    }
-    fn sin(&self) -> Self {
-        Tensor::sin(self)
-    }
-    fn cos(&self) -> Self {
-        Tensor::cos(self)
-    }
-    fn tan(&self) -> Self {
-        Tensor::tan(self)
-    }
-    fn atan(&self) -> Self {
-        Tensor::atan(self)
-    }
-    fn min(&self, o: &Self) -> Self {
-        self.minimum(o)
-    }
-    fn max(&self, o: &Self) -> Self {
-        self.maximum(o)
-    }
-    fn clamp_c(&self, lo: f64, hi: f64) -> Self {
-        self.clamp(lo, hi)
-    }
-    fn gt(&self, o: &Self) -> Self {
-        self.gt_tensor(o).to_kind(self.kind()).detach()
-    }
-    fn select(mask: &Self, a: &Self, b: &Self) -> Self {
-        a.where_self(&mask.gt(0.5), b)
-    }
-    fn recip(&self) -> Self {
-        self.reciprocal() // one operation instead of two
     }
 }

@@ -46,9 +46,8 @@ pub fn time_to_conflict<T: Num>(x: &T, v: &T, x_c: f64, eps: f64) -> T {
 pub fn conflict_time_gap<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
     let t_i = time_to_conflict(x_i, v_i, x_c, eps);
     let t_j = time_to_conflict(x_j, v_j, x_c, eps);
-    // 1e-12 under the root keeps its gradient finite where a time is 0 (a vehicle at x_c):
-    // sqrt'(0) is infinite, and in the tensor engine a same-lane pair masks this term by a
-    // product, 0 * inf = NaN. It moves the value by less than 1e-12 relative.
+    // 1e-12 under the root keeps its derivative finite where a time is 0 (a vehicle at x_c):
+    // sqrt'(0) is infinite. It moves the value by less than 1e-12 relative.
     t_i.mul(&t_j)
         .add_c(1e-12)
         .sqrt()

@@ -1,8 +1,9 @@
 //! Training: potential-based gradient ascent (Algorithm 1) and the single-agent baseline.
 //!
 //! Each epoch draws a stratified minibatch of initial states, rolls the shared policy out in
-//! the differentiable tensor engine ([`crate::engine::tensor`]) and takes one Adam step on the
-//! gradient, back-propagated through the whole rollout, of
+//! the differentiable tensor engine ([`crate::engine::tensor`], on the tape of
+//! [`crate::engine::tape`]; the network's own backward pass is [`StackedNet::act_on_tape`])
+//! and takes one Adam step on the gradient, back-propagated through the whole rollout, of
 //! - `mpg`: the mean discounted total potential, eq. (29), with the policy driving every player;
 //! - `sarl`: the ego's mean discounted return `J_ego`, the other players driven by IDM.
 //!
@@ -661,10 +662,10 @@ pub fn train(
 }
 
 /// Trains every run (one mode, one seed each) side by side: their networks stacked
-/// ([`StackedNet`]) and their rollouts in one batch, so that libtorch's per-operation cost is
-/// paid once for all of them. Each run learns what it would learn alone (a member's
-/// computation does not depend on the others). `on_epoch` sees each run's records with the
-/// run's index.
+/// ([`StackedNet`]) and their rollouts in one batch (in [`SHARDS`] shards), so that the
+/// per-operation cost is paid once for all of them. Each run learns what it would learn
+/// alone (a member's computation does not depend on the others). `on_epoch` sees each run's
+/// records with the run's index.
 ///
 /// When `stop` becomes true, training ends after the current epoch with a checkpoint of every
 /// run and [`TrainError::Interrupted`].

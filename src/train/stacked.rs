@@ -1,10 +1,10 @@
 //! Several policy networks trained side by side as one computation.
 //!
 //! Training's work per step is small (tens of scenarios of 9 players, a 64-wide network), so
-//! libtorch's per-operation cost dominates. Stacking the networks of every seed (and every
-//! screening candidate) lets one rollout carry all of them: the layers are batched matrix
-//! products over a leading member dimension, `[members, rows, features]`, and each member's
-//! rows are its own scenarios.
+//! the per-operation cost matters. Stacking the networks of every seed (and every screening
+//! candidate) lets one rollout carry all of them: the layers are batched matrix products over
+//! a leading member dimension, `[members, rows, features]`, and each member's rows are its
+//! own scenarios.
 //!
 //! Every operation acts on each member separately (batched products, element-wise maps, and
 //! the per-member gradient clipping of [`StackedNet::clip_grad_norm`]), and Adam is
@@ -201,20 +201,28 @@ impl StackedNet {
     }
 
     /// Scales each member's gradient so that its L2 norm (over all of its parameters) is at
-    /// most `max`, as `clip_grad_norm` does for one network alone.
+    /// most `max`, as `clip_grad_norm` does for one network alone. Each member's norm is
+    /// summed on its own (in f64): a reduction over all members could take another order as
+    /// their number changes.
     pub fn clip_grad_norm(&self, max: f64) {
         tch::no_grad(|| {
             let grads: Vec<Tensor> = self.params().map(|p| p.grad()).collect();
-            let squares: Vec<Tensor> = grads
-                .iter()
-                .map(|g| {
-                    g.square()
-                        .reshape([self.members, -1])
-                        .sum_dim_intlist(1, false, None)
+            let coef: Vec<f64> = (0..self.members)
+                .map(|k| {
+                    let squares: f64 = grads
+                        .iter()
+                        .map(|g| {
+                            g.get(k)
+                                .to_kind(Kind::Double)
+                                .square()
+                                .sum(Kind::Double)
+                                .double_value(&[])
+                        })
+                        .sum();
+                    (max / (squares.sqrt() + 1e-6)).min(1.0)
                 })
                 .collect();
-            let norm = Tensor::stack(&squares, 0).sum_dim_intlist(0, false, None).sqrt();
-            let coef = ((norm + 1e-6).reciprocal() * max).clamp_max(1.0);
+            let coef = Tensor::from_slice(&coef).to_kind(Kind::Float);
             for mut g in grads {
                 let shape: Vec<i64> = std::iter::once(self.members)
                     .chain(std::iter::repeat_n(1, g.dim() - 1))
@@ -325,5 +333,28 @@ mod tests {
             assert_eq!(ours.len(), theirs.len());
             close(&ours, &theirs, "weight");
         }
+    }
+
+    #[test]
+    fn a_members_clipped_gradient_does_not_depend_on_the_stack() {
+        // Four networks clipped as a stack of their own and behind four others (the paper's
+        // width: the stack of 8 reaches libtorch's grain size for a reduction over all
+        // members, which then takes another order): the same bits.
+        let spec = NetSpec::new(Layout::Table1 { players: 9 }, 64, 9.81);
+        let nets: Vec<PolicyNet> = (0..8).map(|k| PolicyNet::seeded(spec.clone(), k)).collect();
+        let clipped = |first: usize| -> Vec<Vec<f32>> {
+            let net = StackedNet::from_nets(&nets[first..]);
+            let grads: Vec<Tensor> = net.params().map(|p| p.detach().sin() * 50.0).collect();
+            net.set_grads(&grads);
+            net.clip_grad_norm(10.0);
+            net.params()
+                .flat_map(|p| (first..8).map(move |k| p.grad().get((k - first) as i64)))
+                .map(|g| Vec::try_from(g.flatten(0, -1)).expect("floats"))
+                .collect()
+        };
+        let own: Vec<Vec<f32>> = clipped(4);
+        let behind: Vec<Vec<f32>> = clipped(0);
+        let behind: Vec<Vec<f32>> = behind.chunks(8).flat_map(|layer| layer[4..].to_vec()).collect();
+        assert_eq!(own, behind);
     }
 }
