@@ -1,9 +1,9 @@
 //! Forward-mode derivatives: a value with its partial derivatives in `K` inputs.
 //!
 //! The tape ([`crate::engine::tape`]) records one node per operation on a whole array. For a
-//! long element-wise expression of a few inputs (a pair's reward terms, say) it is cheaper to
-//! run the generic equation once per element on [`Dual`] numbers and keep only the `K`
-//! partial derivatives: [`crate::engine::tape::Var::fused`].
+//! long element-wise expression of a few inputs (a pair's reward terms) it is cheaper to run
+//! the generic equation once per element on [`Dual`] numbers and keep only the `K` partial
+//! derivatives: [`crate::engine::tape::Var::pairwise`].
 
 use crate::num::Num;
 

@@ -183,35 +183,6 @@ impl Var {
         self.gather_cols(&index.into())
     }
 
-    /// `f` of `K` arrays, element by element on [`Dual`] numbers (`f` also gets the element's
-    /// index): one node that keeps each element's `K` partial derivatives instead of one node
-    /// per operation of `f`. The arrays have one shape, or single columns that broadcast.
-    pub fn fused<const K: usize>(inputs: [&Var; K], f: impl Fn(usize, [Dual<K>; K]) -> Dual<K>) -> Var {
-        let cols = inputs.iter().fold(1, |c, v| broadcast(inputs[0], v).1.max(c));
-        let inputs = inputs.map(|v| v.expand(cols));
-        let (rows, n) = (inputs[0].rows, inputs[0].value.len());
-        let mut value = Vec::with_capacity(n);
-        let mut partials = Vec::with_capacity(n * K);
-        for k in 0..n {
-            let out = f(k, std::array::from_fn(|i| Dual::input(inputs[i].value[k], i)));
-            value.push(out.v);
-            partials.extend_from_slice(&out.d);
-        }
-        let tracked = inputs.each_ref().map(Var::tracked);
-        Var::custom(&inputs.each_ref(), value, rows, cols, move |g| {
-            (0..K)
-                .map(|i| {
-                    tracked[i].then(|| {
-                        g.iter()
-                            .zip(partials.chunks(K))
-                            .map(|(&g, p)| if g == 0.0 { 0.0 } else { g * p[i] })
-                            .collect()
-                    })
-                })
-                .collect()
-        })
-    }
-
     /// `out[r, p] = f(r, p, [x_i, v_i, x_j, v_j])` for the pairs `p = (i, j)` of columns of
     /// two arrays of one shape, on [`Dual`] numbers: one node that keeps the four partial
     /// derivatives of each pair's value.
@@ -421,6 +392,7 @@ fn broadcast(a: &Var, b: &Var) -> (usize, usize) {
 /// Gradients of the leaves of this thread's tape.
 #[derive(Debug, Default)]
 pub struct Gradients {
+    generation: u64,
     leaves: HashMap<usize, Vec<f64>>,
 }
 
@@ -428,6 +400,7 @@ impl Gradients {
     /// The gradient of `leaf` (`None` when the root does not depend on it).
     pub fn of(&self, leaf: &Var) -> Option<&[f64]> {
         leaf.node
+            .filter(|&(g, _)| g == self.generation)
             .and_then(|(_, i)| self.leaves.get(&i))
             .map(Vec::as_slice)
     }
@@ -441,8 +414,9 @@ pub fn backward(root: &Var, seed: Vec<f64>) -> Gradients {
     if !root.tracked() {
         return out;
     }
+    let (generation, last) = root.node.expect("tracked");
+    out.generation = generation;
     let nodes = TAPE.with(|t| std::mem::take(&mut t.borrow_mut().nodes));
-    let last = root.node.expect("tracked").1;
     let mut grads: Vec<Option<Vec<f64>>> = Vec::new();
     grads.resize_with(last + 1, || None);
     grads[last] = Some(seed);
@@ -578,5 +552,50 @@ fn tie(a: f64, b: f64, g: f64) -> f64 {
         g / 2.0
     } else {
         0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gradients_of_broadcasts_gathers_pairs_and_masks_are_hand_computed() {
+        // Two rows of three: x = [[1, 2, 3], [4, 5, 6]], a column c = [10, 20].
+        start();
+        let x = Var::leaf(vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0], 2, 3);
+        let c = Var::leaf(vec![10.0, 20.0], 2, 1);
+        // y = x * c (broadcast), then each element's right neighbour (the last its own).
+        let right: Rc<[usize]> = vec![1, 2, 2, 1, 2, 2].into();
+        let y = x.mul(&c).gather_cols(&right);
+        assert_eq!(y.values(), &[20.0, 30.0, 30.0, 100.0, 120.0, 120.0]);
+        // Pair sums of the pairs (0, 1) and (0, 2), then a mask that keeps column 0 of y.
+        let pairs: Rc<[(usize, usize)]> = vec![(0, 1), (0, 2)].into();
+        let p = y.select_cols(&vec![0, 1].into()).pair_sums(&pairs, 3);
+        assert_eq!(p.values(), &[50.0, 20.0, 30.0, 220.0, 100.0, 120.0]);
+        let mask = Var::constant(vec![1.0, 0.0, 0.0, 1.0, 0.0, 0.0], 2, 3);
+        let out = Var::select(&mask, &p, &x.square()).sum_cols();
+        // Row 0: 50 + 2^2 + 3^2; row 1: 220 + 25 + 36.
+        assert_eq!(out.values(), &[63.0, 281.0]);
+        let g = backward(&out, vec![1.0, 1.0]);
+        // d/dx: through p[., 0] = y0 + y1 = c x1 + c x2, and the squares of columns 1 and 2.
+        assert_eq!(
+            g.of(&x).unwrap(),
+            &[0.0, 10.0 + 4.0, 10.0 + 6.0, 0.0, 20.0 + 10.0, 20.0 + 12.0]
+        );
+        // d/dc: x1 + x2 per row.
+        assert_eq!(g.of(&c).unwrap(), &[5.0, 11.0]);
+    }
+
+    #[test]
+    fn a_value_of_an_earlier_tape_is_a_constant() {
+        start();
+        let old = Var::leaf(vec![3.0], 1, 1);
+        start();
+        let new = Var::leaf(vec![2.0], 1, 1);
+        let out = old.mul(&new);
+        let g = backward(&out, vec![1.0]);
+        assert_eq!(g.of(&new).unwrap(), &[3.0]);
+        assert!(g.of(&old).is_none());
     }
 }
