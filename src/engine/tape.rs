@@ -102,26 +102,25 @@ impl Var {
         cols: usize,
         backward: impl FnOnce(&[f64]) -> Vec<Option<Vec<f64>>> + 'static,
     ) -> Var {
+        let v = Var::constant(value, rows, cols);
         if operands.iter().any(|o| o.tracked()) {
-            Var::source(operands, value, rows, cols, backward)
+            v.recorded(operands, backward)
         } else {
-            Var::constant(value, rows, cols)
+            v
         }
     }
 
-    /// As [`Var::custom`], for a value that also depends on something the tape does not see
-    /// (a network's weights, whose gradient `backward` keeps itself): recorded even without a
-    /// tracked operand.
-    pub fn source(
+    /// These values recorded on the tape as computed from `operands`, with the backward step
+    /// of [`Var::custom`], even without a tracked operand: for a value that also depends on
+    /// something the tape does not see (a network's weights, whose gradient `backward` keeps
+    /// itself).
+    pub fn recorded(
+        mut self,
         operands: &[&Var],
-        value: Vec<f64>,
-        rows: usize,
-        cols: usize,
         backward: impl FnOnce(&[f64]) -> Vec<Option<Vec<f64>>> + 'static,
     ) -> Var {
-        let mut v = Var::constant(value, rows, cols);
-        v.node = Some(record(operands, Some(Box::new(backward))));
-        v
+        self.node = Some(record(operands, Some(Box::new(backward))));
+        self
     }
 
     /// Does the value depend on a leaf of the current tape?
@@ -263,25 +262,12 @@ impl Var {
 
     /// `f(self)`, whose backward step `d(output, gradient)` reads the output.
     fn unary_out(&self, f: impl Fn(f64) -> f64, d: impl Fn(f64, f64) -> f64 + 'static) -> Var {
-        let out = Rc::new(self.value.iter().map(|&a| f(a)).collect::<Vec<f64>>());
+        let out = Var::constant(self.value.iter().map(|&a| f(a)).collect(), self.rows, self.cols);
         if !self.tracked() {
-            return Var {
-                value: out,
-                rows: self.rows,
-                cols: self.cols,
-                node: None,
-            };
+            return out;
         }
-        let o = out.clone();
-        Var {
-            value: out,
-            rows: self.rows,
-            cols: self.cols,
-            node: Some(record(
-                &[self],
-                Some(Box::new(move |g: &[f64]| vec![Some(derivative(g, &o, d))])),
-            )),
-        }
+        let o = out.value.clone();
+        out.recorded(&[self], move |g| vec![Some(derivative(g, &o, d))])
     }
 
     fn binary(

@@ -405,11 +405,10 @@ pub struct TensorRun {
 }
 
 /// Runs `run.steps` steps (on this thread's tape, where they depend on a leaf or a
-/// [`Var::source`]); `act` gives the raw actions of every player from the state and its
-/// neighbours. An episode stops
-/// counting rewards after its first collision when `terminate_on_collision` (charging the
-/// collision step's rewards for the remaining steps with `sim.absorbing_collision`, as the
-/// scalar engine does).
+/// [`Var::recorded`] value); `act` gives the raw actions of every player from the state and
+/// its neighbours. An episode stops counting rewards after its first collision when
+/// `terminate_on_collision` (charging the collision step's rewards for the remaining steps
+/// with `sim.absorbing_collision`, as the scalar engine does).
 pub fn rollout(
     config: &Config,
     scenes: &[Scene],

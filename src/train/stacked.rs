@@ -114,46 +114,40 @@ impl StackedNet {
         let actions = Vec::<f32>::try_from((&t * scale).flatten(0, -1)).expect("a CPU float tensor");
         let (input_scale, grads) = (self.scale.shallow_clone(), grads.clone());
         let n_features = features.len();
-        Var::source(
-            &features.iter().collect::<Vec<_>>(),
-            actions.into_iter().map(f64::from).collect(),
-            rows,
-            cols,
-            move |g| {
-                let d = tch::no_grad(|| {
-                    let g = Tensor::from_slice(g).to_kind(Kind::Float).reshape(t.size());
-                    // The layers' outputs are positive exactly where their inputs are.
-                    let leaky =
-                        |out: &Tensor, grad: &Tensor| out.leaky_relu_backward(grad, LEAKY_SLOPE, true);
-                    let gz: Tensor = g * scale * (1.0 - t.square()); // [m, r]
-                    let dw3 = (&h2 * gz.unsqueeze(-1))
-                        .sum_dim_intlist(1, false, None)
-                        .unsqueeze(-1);
-                    let db3 = gz.sum_dim_intlist(1, true, None).unsqueeze(-1);
-                    let dh2 = leaky(&h2, &(gz.unsqueeze(-1) * w[4].transpose(1, 2)));
-                    let dw2 = h1.transpose(1, 2).bmm(&dh2);
-                    let db2 = dh2.sum_dim_intlist(1, true, None);
-                    let dh1 = leaky(&h1, &dh2.bmm(&w[2].transpose(1, 2)));
-                    let dw1 = x0.transpose(1, 2).bmm(&dh1);
-                    let db1 = dh1.sum_dim_intlist(1, true, None);
-                    let d_obs = dh1.bmm(&w[0].transpose(1, 2)) * &input_scale;
-                    let step = [dw1, db1, dw2, db2, dw3, db3];
-                    let mut sums = grads.borrow_mut();
-                    match sums.as_mut() {
-                        Some(sums) => sums.iter_mut().zip(&step).for_each(|(s, d)| {
-                            let _ = s.g_add_(d);
-                        }),
-                        None => *sums = Some(step.into()),
-                    }
-                    d_obs
-                });
-                let d = Vec::<f32>::try_from(d.flatten(0, -1)).expect("a CPU float tensor");
-                let dim = dim as usize;
-                (0..n_features)
-                    .map(|j| Some(d.iter().skip(j).step_by(dim).map(|&x| f64::from(x)).collect()))
-                    .collect()
-            },
-        )
+        let actions = Var::constant(actions.into_iter().map(f64::from).collect(), rows, cols);
+        actions.recorded(&features.iter().collect::<Vec<_>>(), move |g| {
+            let d = tch::no_grad(|| {
+                let g = Tensor::from_slice(g).to_kind(Kind::Float).reshape(t.size());
+                // The layers' outputs are positive exactly where their inputs are.
+                let leaky = |out: &Tensor, grad: &Tensor| out.leaky_relu_backward(grad, LEAKY_SLOPE, true);
+                let gz: Tensor = g * scale * (1.0 - t.square()); // [m, r]
+                let dw3 = (&h2 * gz.unsqueeze(-1))
+                    .sum_dim_intlist(1, false, None)
+                    .unsqueeze(-1);
+                let db3 = gz.sum_dim_intlist(1, true, None).unsqueeze(-1);
+                let dh2 = leaky(&h2, &(gz.unsqueeze(-1) * w[4].transpose(1, 2)));
+                let dw2 = h1.transpose(1, 2).bmm(&dh2);
+                let db2 = dh2.sum_dim_intlist(1, true, None);
+                let dh1 = leaky(&h1, &dh2.bmm(&w[2].transpose(1, 2)));
+                let dw1 = x0.transpose(1, 2).bmm(&dh1);
+                let db1 = dh1.sum_dim_intlist(1, true, None);
+                let d_obs = dh1.bmm(&w[0].transpose(1, 2)) * &input_scale;
+                let step = [dw1, db1, dw2, db2, dw3, db3];
+                let mut sums = grads.borrow_mut();
+                match sums.as_mut() {
+                    Some(sums) => sums.iter_mut().zip(&step).for_each(|(s, d)| {
+                        let _ = s.g_add_(d);
+                    }),
+                    None => *sums = Some(step.into()),
+                }
+                d_obs
+            });
+            let d = Vec::<f32>::try_from(d.flatten(0, -1)).expect("a CPU float tensor");
+            let dim = dim as usize;
+            (0..n_features)
+                .map(|j| Some(d.iter().skip(j).step_by(dim).map(|&x| f64::from(x)).collect()))
+                .collect()
+        })
     }
 
     /// Sets each parameter's gradient to `grads` (as [`ParamGrads`] sums them).
