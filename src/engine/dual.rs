@@ -37,6 +37,19 @@ impl<const K: usize> Dual<K> {
         }
     }
 
+    /// `self` where it compares to `o` as `keep`, `o` otherwise (with `pick`'s value, for a
+    /// NaN), both halves on a tie: the minimum or the maximum.
+    fn extreme(&self, o: &Self, keep: std::cmp::Ordering, pick: fn(f64, f64) -> f64) -> Self {
+        match self.v.partial_cmp(&o.v) {
+            Some(order) if order == keep => *self,
+            Some(std::cmp::Ordering::Equal) => self.combine(*o, self.v, 0.5, 0.5),
+            _ => Dual {
+                v: pick(self.v, o.v),
+                ..*o
+            },
+        }
+    }
+
     fn combine(self, o: Self, v: f64, da: f64, db: f64) -> Self {
         let mut d = [0.0; K];
         for ((d, a), b) in d.iter_mut().zip(self.d).zip(o.d) {
@@ -101,24 +114,10 @@ impl<const K: usize> Num for Dual<K> {
     }
     // Ties share the derivative, as the tape's minimum and maximum do.
     fn min(&self, o: &Self) -> Self {
-        match self.v.partial_cmp(&o.v) {
-            Some(std::cmp::Ordering::Less) => *self,
-            Some(std::cmp::Ordering::Equal) => self.combine(*o, self.v, 0.5, 0.5),
-            _ => Dual {
-                v: self.v.min(o.v),
-                ..*o
-            },
-        }
+        self.extreme(o, std::cmp::Ordering::Less, f64::min)
     }
     fn max(&self, o: &Self) -> Self {
-        match self.v.partial_cmp(&o.v) {
-            Some(std::cmp::Ordering::Greater) => *self,
-            Some(std::cmp::Ordering::Equal) => self.combine(*o, self.v, 0.5, 0.5),
-            _ => Dual {
-                v: self.v.max(o.v),
-                ..*o
-            },
-        }
+        self.extreme(o, std::cmp::Ordering::Greater, f64::max)
     }
     fn clamp_c(&self, lo: f64, hi: f64) -> Self {
         let slope = if (lo..=hi).contains(&self.v) { 1.0 } else { 0.0 };

@@ -42,7 +42,7 @@ pub struct TensorBatch {
     /// Each scene's own desired speed (as [`Scene::v_desired`]).
     own_desired: Vec<Option<f64>>,
     /// The same states as plain scenes, without gradient: the discrete work (neighbours,
-    /// merge gate, collisions) reads them, copied out of the tensors once per step.
+    /// merge gate, collisions) reads them, copied out of the arrays once per step.
     detached: Vec<Scene>,
 }
 
