@@ -4,7 +4,9 @@ mod common;
 
 use approx::assert_abs_diff_eq;
 use common::{car, scene};
-use mpgdrive::world::merge_gate::{GateRules, STOP_MARGIN, entry_is_safe, gate_holds, stop_bound};
+use mpgdrive::world::merge_gate::{
+    GateRules, STOP_MARGIN, entry_is_safe, gate_holds, lane_change_is_safe, stop_bound,
+};
 use mpgdrive::world::state::Vehicle;
 
 /// x_c = 180 m, 5 m cars with a 2 m safety gap, b_safe = 4 m/s^2, tau_s = 3 s, braking at up
@@ -75,6 +77,23 @@ fn a_committed_ego_is_not_held() {
         0,
         &rules()
     ));
+}
+
+#[test]
+fn a_lane_change_needs_one_steps_gaps_with_tau_s_of_ttc() {
+    // Ego at 140 m and 10 m/s (the entry check at the stop line does not apply this far).
+    // A leader 19 m ahead at 6 m/s: after the step the gap is 159.6 - 141 - 7 = 11.6 m,
+    // closing at 4 m/s: TTC 2.9 s < 3 s, not safe; 20 m ahead: 12.6 / 4 = 3.15 s, safe.
+    let ego = car(140.0, 10.0, true);
+    let change = |other| lane_change_is_safe(&scene(vec![ego, other]), 0, &rules());
+    assert!(!change(car(159.0, 6.0, false)));
+    assert!(change(car(160.0, 6.0, false)));
+    // A follower at the ego's speed needs the clearance only: 7 m between centres.
+    assert!(change(car(132.9, 10.0, false)));
+    assert!(!change(car(133.1, 10.0, false)));
+    // The same follower 30 m back but at 20 m/s: gap 141 - 112 - 7 = 22 m closing at 10 m/s,
+    // TTC 2.2 s: not safe.
+    assert!(!change(car(110.0, 20.0, false)));
 }
 
 #[test]

@@ -47,8 +47,8 @@
 //! the steps where SUMO did not apply a commanded speed. An ego whose centre reaches the
 //! conflict point is treated as merged, as in the internal simulator, and told to change to
 //! the target lane next to it; with `merge.toml`'s `merge_from` it is told so earlier, at the
-//! first step from there on where the merge gate's entry check finds the gap safe (as the
-//! traffic world's `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
+//! first step from there on where the lane change is safe (as the traffic world's
+//! `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
 //! ([`ControlModes::player_lane_change`]). Positions are along the lanes
 //! ([`LanePositions`]). Control ends when the ego is
 //! `release_after` metres past the conflict point on the target lane; SUMO then drives it
@@ -64,7 +64,7 @@ use crate::sumo::geometry::{MergeGeometry, PlayerControl};
 use crate::sumo::kind::ControllerKind;
 use crate::sumo::positions::LanePositions;
 use crate::sumo::{Sumo, SumoError};
-use crate::world::merge_gate::entry_is_safe;
+use crate::world::merge_gate::lane_change_is_safe;
 use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
 use crate::world::state::{Scene, Vehicle};
@@ -401,14 +401,14 @@ impl Controller {
     }
 
     /// Whether ramp vehicle `car`, driven by the policy, changes to the target lane now: at
-    /// the conflict point, or from `merge_from` on where the merge gate's entry check finds
-    /// the gap safe.
+    /// the conflict point, or from `merge_from` on where the lane change is safe (the traffic
+    /// world's merge-zone rule, [`lane_change_is_safe`]).
     fn merges_now(&self, cars: &[Car], car: usize) -> bool {
         let x = cars[car].x;
         x >= self.rules.conflict_point()
             || self.geometry.merge_from.is_some_and(|from| {
                 x >= from
-                    && entry_is_safe(
+                    && lane_change_is_safe(
                         &ego_and_target_lane(cars, car, self.config.scenario.lane_width),
                         0,
                         &self.rules.gate,
@@ -781,7 +781,7 @@ impl Game {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::world::merge_gate::GateRules;
+    use crate::world::merge_gate::{GateRules, entry_is_safe};
 
     fn car(id: &str, x: f64, v: f64, on_ramp: bool) -> Car {
         Car {
@@ -948,6 +948,17 @@ mod tests {
             car("ramp", 150.0, 12.0, true),
         ];
         assert!(c.merges_now(&far, 0));
+        // A car 20 m behind at 16 m/s: after the step the gap is 151.2 - 131.6 - 7 = 12.6 m,
+        // closing at 4 m/s: TTC 3.15 s >= tau_s = 3 s, and 4^2 <= 2 * 4 * 12.6. 18 m behind,
+        // TTC 10.6 / 4 = 2.65 s: not now.
+        let gaining = |behind: f64| {
+            [
+                car("ego", 150.0, 12.0, true),
+                car("lane", 150.0 - behind, 16.0, false),
+            ]
+        };
+        assert!(c.merges_now(&gaining(20.0), 0));
+        assert!(!c.merges_now(&gaining(18.0), 0));
         // At x_c the merge happens whatever is there.
         let at_x_c = [car("ego", 180.0, 12.0, true), car("lane", 178.0, 12.0, false)];
         assert!(c.merges_now(&at_x_c, 0));

@@ -21,6 +21,15 @@
 //! follower must not need to brake harder than `b_safe`; and symmetrically the merging
 //! vehicle behind its new leader).
 //!
+//! **Lane change** ([`lane_change_is_safe`]): inside the merge zone (`scenario.merge_zone`,
+//! SUMO's `merge_from`) a ramp vehicle changes lanes at once, as SUMO's drivers do along an
+//! acceleration lane, so there is no later crossing to predict: the check is the entry's one
+//! step ahead, and it also asks the feasibility projection's time to collision, `tau_s`, of
+//! both new pairs, so that a merge never starts inside what the projection would then have to
+//! undo (and SUMO's safety measures count as a conflict, TTC < 3 s). Checking up to `tau_s`
+//! ahead as at the stop line held egos slower than the target lane until the gap they had
+//! drifted past.
+//!
 //! **Stopping bound** ([`stop_bound`]): after this step the vehicle is at `x' = x + v dt`
 //! (eq. 1 moves `x` with the current speed) with speed `v' = v + a dt`; from there it stops
 //! before `x_s = x_c - 0.1 m` braking at `b` when `v'^2 / (2 b) + v' dt <= x_s - x'`, that is
@@ -79,9 +88,10 @@ pub fn gate_holds(scene: &Scene, i: usize, rules: &GateRules) -> bool {
     me.on_ramp && stop_bound(&me.x, &me.v, rules) >= -rules.brake && !entry_is_safe(scene, i, rules)
 }
 
-/// Whether a gap of `gap` (m) absorbs a closing speed `closing` (m/s) braking at `b` (m/s^2).
-fn absorbs(gap: f64, closing: f64, b: f64) -> bool {
-    gap > 0.0 && (closing <= 0.0 || closing * closing <= 2.0 * b * gap)
+/// Whether a gap of `gap` (m) absorbs a closing speed `closing` (m/s) braking at `b` (m/s^2),
+/// with a time to collision `gap / closing` of at least `min_ttc` (s).
+fn absorbs(gap: f64, closing: f64, b: f64, min_ttc: f64) -> bool {
+    gap > 0.0 && (closing <= 0.0 || (closing * closing <= 2.0 * b * gap && gap >= min_ttc * closing))
 }
 
 /// Whether ramp vehicle `i` of `scene` may enter the target lane (module docs). Vehicles
@@ -91,12 +101,21 @@ pub fn entry_is_safe(scene: &Scene, i: usize, rules: &GateRules) -> bool {
     let v_stop = (me.v + stop_bound(&me.x, &me.v, rules) * rules.dt).max(0.0);
     let t_latest = 2.0 * rules.dt + v_stop / rules.brake;
     let last = (t_latest.min(rules.horizon) / rules.dt).ceil().max(2.0) as usize;
-    (2..=last).all(|k| safe_at(scene, me, k as f64 * rules.dt, rules))
+    (2..=last).all(|k| safe_at(scene, me, k as f64 * rules.dt, 0.0, rules))
+}
+
+/// Whether ramp vehicle `i` of `scene` may change to the target lane this step, as it does
+/// inside the merge zone (module docs, "Lane change"): after the step, every vehicle keeping
+/// its speed, both new gaps absorb their closing speeds braking at `b_safe` with a time to
+/// collision of at least `tau_s` (`rules.horizon`).
+pub fn lane_change_is_safe(scene: &Scene, i: usize, rules: &GateRules) -> bool {
+    safe_at(scene, &scene.vehicles[i], rules.dt, rules.horizon, rules)
 }
 
 /// Whether `me`, entering at `t` with its current speed, finds gaps that absorb the closing
-/// speeds (every target-lane vehicle keeping its speed until then).
-fn safe_at(scene: &Scene, me: &Vehicle, t: f64, rules: &GateRules) -> bool {
+/// speeds with a time to collision of at least `min_ttc` (every target-lane vehicle keeping
+/// its speed until then).
+fn safe_at(scene: &Scene, me: &Vehicle, t: f64, min_ttc: f64, rules: &GateRules) -> bool {
     let x_e = me.x + me.v * t;
     let mut leader: Option<(f64, f64)> = None;
     let mut follower: Option<(f64, f64)> = None;
@@ -110,8 +129,10 @@ fn safe_at(scene: &Scene, me: &Vehicle, t: f64, rules: &GateRules) -> bool {
             follower = Some((x, v.v));
         }
     }
-    let ahead_ok = leader.is_none_or(|(x, v)| absorbs(x - x_e - rules.clearance, me.v - v, rules.b_safe));
-    let behind_ok = follower.is_none_or(|(x, v)| absorbs(x_e - x - rules.clearance, v - me.v, rules.b_safe));
+    let ahead_ok =
+        leader.is_none_or(|(x, v)| absorbs(x - x_e - rules.clearance, me.v - v, rules.b_safe, min_ttc));
+    let behind_ok =
+        follower.is_none_or(|(x, v)| absorbs(x_e - x - rules.clearance, v - me.v, rules.b_safe, min_ttc));
     ahead_ok && behind_ok
 }
 

@@ -8,7 +8,7 @@
 use crate::config::Config;
 use crate::world::dynamics::Axles;
 use crate::world::geometry::Road;
-use crate::world::merge_gate::{GateRules, entry_is_safe};
+use crate::world::merge_gate::{GateRules, lane_change_is_safe};
 use crate::world::state::Scene;
 
 /// Everything a step of the world reads from the configuration.
@@ -71,11 +71,11 @@ impl WorldRules {
     }
 
     /// Whether ramp vehicle `i` of `scene` joins the target lane this step before reaching
-    /// `x_c`: it is inside the merge zone and the merge gate's entry check finds the gap safe
-    /// (a discrete decision, no gradient, as the gate's).
+    /// `x_c`: it is inside the merge zone and the lane change is safe
+    /// ([`lane_change_is_safe`]; a discrete decision, no gradient, as the gate's).
     pub fn merges_early(&self, scene: &Scene, i: usize) -> bool {
         let me = &scene.vehicles[i];
-        me.on_ramp && self.road.in_merge_zone(me.x) && entry_is_safe(scene, i, &self.gate)
+        me.on_ramp && self.road.in_merge_zone(me.x) && lane_change_is_safe(scene, i, &self.gate)
     }
 }
 
