@@ -54,8 +54,9 @@ pub struct ScenarioConfig {
     /// (`[traffic]`). Default `paper`.
     #[serde(default)]
     pub kind: ScenarioKind,
-    /// Ramp vehicles join the target lane at the first step the merge gate's entry check
-    /// finds safe within this distance before `x_c`, and at `x_c` at the latest (m; ours).
+    /// Ramp vehicles change to the target lane at the first step the lane change is safe
+    /// ([`crate::world::merge_gate::lane_change_is_safe`]) within this distance before `x_c`,
+    /// and at `x_c` at the latest (m; ours).
     /// Default 0: at `x_c` only, as the paper.
     #[serde(default)]
     pub merge_zone: f64,
