@@ -116,11 +116,11 @@ fn a_collision_ends_the_episode_for_everyone() {
 }
 
 #[test]
-fn a_collision_between_other_players_is_not_the_egos_but_ends_its_episode() {
+fn a_collision_between_other_players_is_not_the_egos_and_ends_it_only_between_learners() {
     // Two target-lane players at constant speed, 20 m apart centre to centre, the follower
     // 10 m/s faster: the bumpers (5 m cars) touch after 15 m of closing, 1.5 s, so the boxes
     // overlap after step index 15 (the 16th step). The ego, at 5 m/s from x = 100, is still on
-    // the ramp (x = 108 < 180): the episode ends with it unmerged.
+    // the ramp (x = 108 < 180).
     let mut config = smoke();
     config.scenario.n_leaders = 1;
     config.scenario.n_followers = 1;
@@ -130,11 +130,25 @@ fn a_collision_between_other_players_is_not_the_egos_but_ends_its_episode() {
         car(120.0, 5.0, false),
         car(100.0, 15.0, false),
     ]);
-    let out = &constant_speed(&config, s);
+    // Learning players (keeping their speed): the collision ends the episode with the ego
+    // unmerged.
+    let out = &rollout(&config, &opts(&config, 1), std::slice::from_ref(&s), || {
+        Fixed(vec![0.0; 3])
+    })
+    .remove(0);
     let c = out.collision.expect("collision");
-    assert_eq!((c.step, c.a, c.b), (15, 1, 2));
+    assert_eq!((c.step, c.a, c.b, out.steps), (15, 1, 2, 16));
     let m = EpisodeMetrics::of(out);
     assert!(m.other_collision && !m.collision && m.failure, "{m:?}");
+    // Constant-speed players (no policy) do not react to each other: they drive through, the
+    // overlap is recorded and the episode runs its 30 steps.
+    let out = &constant_speed(&config, s);
+    assert_eq!(
+        (out.collision, out.others_overlapped, out.steps),
+        (None, true, 30)
+    );
+    let m = EpisodeMetrics::of(out);
+    assert!(m.other_collision && !m.collision, "{m:?}");
 }
 
 #[test]
@@ -193,8 +207,13 @@ fn feasibility_holds_ttc_at_tau_behind_a_steady_leader() {
     );
     let last = &t.states[t.states.len() - 3..];
     assert!(last[2].v < 15.0 && last[1].v > 5.0 && last[1].x - last[2].x > 5.0);
+    // Learning players keeping their speed, without the projection (constant-speed players
+    // would drive through each other, see the test above).
     config.sim.feasibility = false;
-    let off = run(&config);
+    let off = rollout(&config, &opts(&config, 1), std::slice::from_ref(&s), || {
+        Fixed(vec![0.0; 3])
+    })
+    .remove(0);
     assert_eq!(off.collision.map(|c| (c.step, c.a, c.b)), Some((35, 1, 2)));
 }
 

@@ -97,8 +97,11 @@ pub struct Trajectory {
 pub struct EpisodeOutcome {
     /// Steps simulated (fewer than requested after a terminating collision).
     pub steps: usize,
-    /// First collision, if any.
+    /// First collision, if any (see [`crate::engine::rollout`] for which pairs count).
     pub collision: Option<Collision>,
+    /// Two players that no policy drives (non-learning surrounding players, neither the ego)
+    /// overlapped: they do not react to each other, so they drive through and the episode goes on.
+    pub others_overlapped: bool,
     /// First step at whose end the ego had passed the conflict point.
     pub ego_merged_at: Option<usize>,
     /// Discounted return `J_i = sum_t gamma^t r_i` per player.

@@ -11,7 +11,10 @@
 //! 6. collisions between bounding boxes at `s_{t+1}`: the first one ends the episode for
 //!    everyone (when enabled), after the rewards of step `t` are counted; with
 //!    `sim.absorbing_collision` the step-`t` rewards are also charged for every remaining step
-//!    ([`tail_weight`]).
+//!    ([`tail_weight`]). Two players that no policy drives and that are not the ego (the
+//!    study's IDM or constant-speed surrounding players, [`Actor::learning`]) do not react to
+//!    each other: their overlap is recorded ([`EpisodeOutcome::others_overlapped`]) and they
+//!    drive on, so a study measures the ego against them (Table II's constant-speed column).
 //!
 //! Scenarios are split into contiguous chunks, one worker thread per chunk, each with its own
 //! actor; the results do not depend on the number of threads.
@@ -23,7 +26,7 @@ use crate::world::drivers::{Driver, driver_accel};
 use crate::world::neighbors::{Neighbors, find_neighbors};
 use crate::world::rules::WorldRules;
 use crate::world::state::Scene;
-use crate::world::step::{advance, applied_action, first_collision};
+use crate::world::step::{advance, applied_action, first_collision_among};
 
 /// What a rollout keeps besides the per-episode outcome.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -179,6 +182,7 @@ fn run_chunk(
         .map(|s| EpisodeOutcome {
             steps: 0,
             collision: None,
+            others_overlapped: false,
             ego_merged_at: None,
             returns: vec![0.0; n],
             potential_return: 0.0,
@@ -250,9 +254,14 @@ fn run_chunk(
             if out.ego_merged_at.is_none() && !scene.ego().on_ramp {
                 out.ego_merged_at = Some(step);
             }
+            let counts = |a: usize, b: usize| a == 0 || actor.learning(a) || actor.learning(b);
+            if !out.others_overlapped {
+                out.others_overlapped =
+                    first_collision_among(scene, rules.length, rules.width, |a, b| !counts(a, b)).is_some();
+            }
             if out.collision.is_none() {
-                out.collision =
-                    first_collision(scene, rules.length, rules.width).map(|(a, b)| Collision { step, a, b });
+                out.collision = first_collision_among(scene, rules.length, rules.width, counts)
+                    .map(|(a, b)| Collision { step, a, b });
                 if out.collision.is_some() && opts.terminate_on_collision {
                     alive[b] = false;
                     if config.sim.absorbing_collision {

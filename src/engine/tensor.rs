@@ -4,7 +4,7 @@
 //! the feasibility projection, IDM and the reward terms come from the same functions. The
 //! discrete parts carry no gradient and are computed once, on detached values, by the scalar
 //! code: who is whose neighbour ([`find_neighbors`]) and which boxes overlap
-//! ([`first_collision`]). `tests/tensor.rs` checks that both engines agree, and that the
+//! ([`first_collision_among`]). `tests/tensor.rs` checks that both engines agree, and that the
 //! gradients match finite differences.
 
 use crate::config::Config;
@@ -19,7 +19,7 @@ use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
 use crate::world::state::{Scene, Vehicle};
-use crate::world::step::first_collision;
+use crate::world::step::first_collision_among;
 use std::rc::Rc;
 
 /// States of a batch of scenarios, each field `[batch, agents]`.
@@ -457,7 +457,10 @@ pub fn rollout(
         if terminate_on_collision {
             let mut crashed = vec![0.0f64; alive.len()];
             for ((a, c), scene) in alive.iter_mut().zip(&mut crashed).zip(batch.scenes()) {
-                if *a > 0.0 && first_collision(scene, rules.length, rules.width).is_some() {
+                // As the scalar engine: players that no policy drives (all but the ego when
+                // only the ego learns) drive through each other.
+                let counts = |a: usize, _| a == 0 || learning == Learning::All;
+                if *a > 0.0 && first_collision_among(scene, rules.length, rules.width, counts).is_some() {
                     (*a, *c) = (0.0, 1.0);
                 }
             }

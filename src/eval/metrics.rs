@@ -2,8 +2,10 @@
 //!
 //! - collision: a collision involving the ego;
 //! - failure: no collision, and the ego has not passed the conflict point by the horizon;
-//! - (ours) other collision: the episode ended with a collision between two other players
-//!   (it ends the episode for everyone, so an ego still on the ramp then counts as a failure);
+//! - (ours) other collision: two other players collided; between two policy-driven players
+//!   it ends the episode for everyone (an ego still on the ramp then counts as a failure);
+//!   two players no policy drives drive through each other and the episode goes on
+//!   ([`crate::engine::rollout`]);
 //! - minimum inter-vehicle distance (ours): the smallest centre-to-centre Euclidean distance
 //!   between the ego and any other player over the episode (before the merge this includes the
 //!   lateral offset of the ramp, so it stays small while the ego drives beside the target lane);
@@ -24,7 +26,7 @@ pub struct EpisodeMetrics {
     pub collision: bool,
     /// The ego did not pass the conflict point (and did not collide).
     pub failure: bool,
-    /// A collision between two other players (not counted as the ego's).
+    /// A collision between two other players (not counted as the ego's; see the module docs).
     pub other_collision: bool,
     /// Minimum ego distance (m).
     pub min_distance: f64,
@@ -59,7 +61,7 @@ impl EpisodeMetrics {
     pub fn of(o: &EpisodeOutcome) -> Self {
         let collision = o.collision.is_some_and(|c| c.a == 0 || c.b == 0);
         EpisodeMetrics {
-            other_collision: o.collision.is_some() && !collision,
+            other_collision: o.others_overlapped || (o.collision.is_some() && !collision),
             ..Self::from_stats(o.ego(), collision, o.ego_merged_at.is_some())
         }
     }
@@ -90,7 +92,7 @@ pub struct Summary {
     pub collisions: usize,
     /// Episodes where the ego failed to merge.
     pub failures: usize,
-    /// Episodes ended by a collision between other players.
+    /// Episodes with a collision between other players.
     pub other_collisions: usize,
     /// Mean of the per-episode minimum distance (m).
     pub min_distance: f64,

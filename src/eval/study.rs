@@ -6,6 +6,7 @@
 //! fractional (15.4/500).
 
 use crate::config::Config;
+use crate::engine::outcome::EpisodeOutcome;
 use crate::engine::rollout::Recording;
 use crate::eval::metrics::{EpisodeMetrics, Summary, distance_cell, mean_defined};
 use crate::policy::drive::{Others, policy_rollout};
@@ -131,6 +132,66 @@ pub struct EpisodeRow {
     pub metrics: EpisodeMetrics,
     /// The ego's discounted return `J_0` (its total reward).
     pub ego_return: f64,
+    /// The collision that ended the episode, if any.
+    pub collision: Option<CollisionRecord>,
+}
+
+/// Where an episode's first collision happened: the two players (0 is the ego) and their
+/// states at the first overlapping step, for an episode-by-episode analysis of collisions.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CollisionRecord {
+    /// Time of the overlap (s).
+    pub time: f64,
+    /// The two players, lower number first.
+    pub players: [usize; 2],
+    /// Their positions (m).
+    pub x: [f64; 2],
+    /// Their speeds (m/s).
+    pub v: [f64; 2],
+    /// Whether each was still on the ramp.
+    pub on_ramp: [bool; 2],
+}
+
+impl CollisionRecord {
+    /// The record of an outcome that ended with a collision (`dt`: the step, s); `None` when
+    /// the episode went on after it (`sim.terminate_on_collision = false`), whose final state
+    /// is not the collision's.
+    pub fn of(o: &EpisodeOutcome, dt: f64) -> Option<Self> {
+        let c = o.collision.filter(|c| c.step + 1 == o.steps)?;
+        let veh = &o.final_scene.vehicles;
+        let (a, b) = (&veh[c.a], &veh[c.b]);
+        Some(CollisionRecord {
+            time: (c.step + 1) as f64 * dt,
+            players: [c.a, c.b],
+            x: [a.x, b.x],
+            v: [a.v, b.v],
+            on_ramp: [a.on_ramp, b.on_ramp],
+        })
+    }
+
+    /// CSV header of [`Self::csv`]'s fields.
+    pub const CSV: &str = "collision_time,collision_players,collision_x,collision_v,collision_on_ramp";
+
+    /// The record as CSV fields (pairs as `a b`); empty fields for no collision.
+    pub fn csv(record: Option<&Self>) -> String {
+        record.map_or_else(
+            || ",,,,".to_string(),
+            |r| {
+                format!(
+                    "{:.1},{} {},{:.2} {:.2},{:.2} {:.2},{} {}",
+                    r.time,
+                    r.players[0],
+                    r.players[1],
+                    r.x[0],
+                    r.x[1],
+                    r.v[0],
+                    r.v[1],
+                    u8::from(r.on_ramp[0]),
+                    u8::from(r.on_ramp[1])
+                )
+            },
+        )
+    }
 }
 
 /// Results for one kind of surrounding players.
@@ -242,6 +303,7 @@ pub fn evaluate(
                         scenario,
                         metrics,
                         ego_return: o.returns[0],
+                        collision: CollisionRecord::of(o, config.sim.dt),
                     }),
             );
             per_seed.push((side.seed, Summary::of(&metrics)));
@@ -296,13 +358,14 @@ impl Study {
     /// Every episode as CSV.
     pub fn episodes_csv(&self) -> String {
         let mut out = format!(
-            "seed,surrounding,scenario,collision,failure,other_collision,{},ego_return\n",
-            EpisodeMetrics::CSV_MOTION
+            "seed,surrounding,scenario,collision,failure,other_collision,{},ego_return,{}\n",
+            EpisodeMetrics::CSV_MOTION,
+            CollisionRecord::CSV
         );
         for e in &self.episodes {
             let m = &e.metrics;
             out.push_str(&format!(
-                "{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{}\n",
                 e.seed,
                 e.surrounding.title().to_lowercase().replace(' ', "_"),
                 e.scenario,
@@ -310,7 +373,8 @@ impl Study {
                 u8::from(m.failure),
                 u8::from(m.other_collision),
                 m.motion_csv(),
-                e.ego_return
+                e.ego_return,
+                CollisionRecord::csv(e.collision.as_ref())
             ));
         }
         out

@@ -210,6 +210,7 @@ mod tests {
         EpisodeOutcome {
             steps: 4,
             collision,
+            others_overlapped: false,
             ego_merged_at: None,
             returns: vec![0.0; 3],
             potential_return: 0.0,

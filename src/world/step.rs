@@ -85,6 +85,17 @@ pub fn applied_action(
 
 /// The first overlapping pair `(a, b)`, `a < b`, in index order.
 pub fn first_collision(scene: &Scene, length: f64, width: f64) -> Option<(usize, usize)> {
+    first_collision_among(scene, length, width, |_, _| true)
+}
+
+/// The first overlapping pair `(a, b)`, `a < b`, in index order, among the pairs `counts`
+/// accepts.
+pub fn first_collision_among(
+    scene: &Scene,
+    length: f64,
+    width: f64,
+    counts: impl Fn(usize, usize) -> bool,
+) -> Option<(usize, usize)> {
     let fp = |v: &Vehicle| Footprint {
         x: v.x,
         y: v.y,
@@ -96,7 +107,11 @@ pub fn first_collision(scene: &Scene, length: f64, width: f64) -> Option<(usize,
     let diagonal = length.hypot(width); // centres farther apart than this cannot overlap
     (0..veh.len()).find_map(|a| {
         ((a + 1)..veh.len())
-            .find(|&b| (veh[a].x - veh[b].x).abs() < diagonal && boxes_overlap(&fp(&veh[a]), &fp(&veh[b])))
+            .find(|&b| {
+                (veh[a].x - veh[b].x).abs() < diagonal
+                    && counts(a, b)
+                    && boxes_overlap(&fp(&veh[a]), &fp(&veh[b]))
+            })
             .map(|b| (a, b))
     })
 }
