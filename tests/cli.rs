@@ -153,7 +153,7 @@ fn a_policy_trained_under_other_world_rules_is_refused_by_setting() {
             "conflict_point = 180.0 ",
             "conflict_point = 200.0 ",
         ),
-        ("sim.merge_gate", "merge_gate = true ", "merge_gate = false "),
+        ("sim.merge_gate", "merge_gate = false ", "merge_gate = true "),
     ] {
         assert!(tiny.contains(from), "{from}");
         assert_rejected(&eval("rules-other", tiny.replace(from, to), &[]), key);
@@ -167,7 +167,7 @@ fn a_policy_trained_under_other_world_rules_is_refused_by_setting() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let out = eval(
         "rules-ablation",
-        tiny.replace("merge_gate = true ", "merge_gate = false "),
+        tiny.replace("merge_gate = false ", "merge_gate = true "),
         &["--allow-policy-mismatch"],
     );
     assert!(out.status.success());

@@ -176,6 +176,8 @@ fn feasibility_holds_ttc_at_tau_behind_a_steady_leader() {
     config.scenario.n_leaders = 1;
     config.scenario.n_followers = 1;
     config.sim.horizon = 20.0;
+    // The projection binds the constant-speed drivers too.
+    config.sim.project_non_learning = true;
     let s = scene(vec![
         car(0.0, 0.0, true),
         car(100.0, 5.0, false),

@@ -73,11 +73,12 @@ fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, term
     collisions
 }
 
-/// The paper's configuration without the merge gate: IDM egos then crash, so the comparison
-/// covers terminated episodes.
+/// The paper's configuration with the projection binding the drivers (as the tensor engine's
+/// `Learning::All` binds every player): IDM egos then crash, so the comparison covers
+/// terminated episodes.
 fn ungated() -> Config {
     let mut config = paper();
-    config.sim.merge_gate = false;
+    (config.sim.merge_gate, config.sim.project_non_learning) = (false, true);
     config
 }
 
@@ -95,8 +96,8 @@ fn engines_agree_with_constant_speed_players() {
 fn engines_agree_with_the_merge_gate() {
     // The gate holds the IDM ego (which ignores target-lane cars) until entering is safe:
     // the crashes of the ungated runs above disappear, in both engines alike.
-    let config = paper();
-    assert!(config.sim.merge_gate);
+    let mut config = paper();
+    (config.sim.merge_gate, config.sim.project_non_learning) = (true, true);
     assert_eq!(compare(&config, Driver::Idm, Driver::Idm, true, true), 0);
     assert_eq!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true), 0);
 }

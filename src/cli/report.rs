@@ -216,8 +216,19 @@ fn check_inputs(args: &ReportArgs, policies: &[PathBuf; 2]) -> Result<()> {
 fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Study) -> Result<()> {
     let (args, exe, cfg) = (ctx.args, EXE, &ctx.cfg);
     doc.push(Block::Heading(2, "Statistical study (Tables II and III)".into()));
+    let sim = &ctx.config.sim;
+    let gate = if sim.merge_gate {
+        "**with our merge gate on** (a shield holding ramp vehicles, not the learned policy's result)"
+    } else {
+        "by the learned policy alone (no merge gate)"
+    };
+    let rule = if sim.project_non_learning {
+        "projected onto the feasible set"
+    } else {
+        "by their own rule"
+    };
     doc.push(Block::Text(format!(
-        "{} test scenarios per policy seed, drawn from each seed's test stream (disjoint from training); counts averaged over seeds.",
+        "{} test scenarios per policy seed, drawn from each seed's test stream (disjoint from training); counts averaged over seeds. Measured {gate}; IDM and constant-speed players drive {rule}.",
         ctx.config.eval.test_scenarios
     )));
     for study in [marl, single] {

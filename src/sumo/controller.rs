@@ -883,9 +883,11 @@ mod tests {
         // conflict point elsewhere. Here x_c = 300 m: an ego at 293 m and 10 m/s, beside a
         // target-lane car, at the last step from which it can still stop before 300 m, must be
         // held, though it is past 180 m (where it would count as committed and go on at +g).
-        let mut c = paper_controller();
-        c = Controller::new(
-            c.config.clone(),
+        let c = paper_controller();
+        let mut config = c.config.clone();
+        config.sim.merge_gate = true;
+        let mut c = Controller::new(
+            config,
             MergeGeometry {
                 conflict_point: 300.0,
                 ..c.geometry.clone()
