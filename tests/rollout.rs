@@ -6,6 +6,7 @@ use approx::assert_abs_diff_eq;
 use common::{car, scene, smoke};
 use mpgdrive::engine::rollout::{Actor, DriverActor, Recording, RolloutOptions, rollout};
 use mpgdrive::eval::EpisodeMetrics;
+use mpgdrive::eval::study::CollisionRecord;
 use mpgdrive::world::Driver;
 use mpgdrive::world::neighbors::Neighbors;
 use mpgdrive::world::safety::ttc;
@@ -100,6 +101,14 @@ fn a_collision_ends_the_episode_for_everyone() {
     let phi = &out.trajectory.as_ref().unwrap().potential;
     assert_eq!(phi.len(), 5);
     assert!(EpisodeMetrics::of(out).collision);
+    // The episode CSV's record: at t = 0.5 s, the ego (merged) at 180 m and 10 m/s, player 1
+    // at 183 m, stopped.
+    let record = CollisionRecord::of(out, config.sim.dt).expect("a record");
+    assert_eq!(
+        CollisionRecord::csv(Some(&record)),
+        "0.5,0 1,180.00 183.00,10.00 0.00,0 0"
+    );
+    assert_eq!(CollisionRecord::csv(None), ",,,,");
     // Absorbing crash: steps 0..4 counted, then phi_4 charged for steps 5..29 of the 3 s horizon.
     let g = config.sim.gamma;
     let counted: f64 = (0..5).map(|k| g.powi(k) * phi[k as usize]).sum();
