@@ -83,11 +83,6 @@ pub fn applied_action(
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
 }
 
-/// The first overlapping pair `(a, b)`, `a < b`, in index order.
-pub fn first_collision(scene: &Scene, length: f64, width: f64) -> Option<(usize, usize)> {
-    first_collision_among(scene, length, width, |_, _| true)
-}
-
 /// The first overlapping pair `(a, b)`, `a < b`, in index order, among the pairs `counts`
 /// accepts.
 pub fn first_collision_among(
