@@ -37,8 +37,8 @@ pub struct CosimArgs {
     #[arg(long, default_value_t = 900.0)]
     end: f64,
     /// The merge gate as a shield for the ramp vehicles the policy drives: true or false (the
-    /// learned policy alone). Default: true for Table I policies (configs/paper.toml: they were
-    /// trained to rely on it), false for traffic policies (with it, their egos crawled:
+    /// learned policy alone). Default: false, the learned policy alone (the Table I policies
+    /// were trained without it; with it, the traffic policies' egos crawled:
     /// docs/traffic_acceptance.md). A policy is checked against --config as it is; the results say which.
     #[arg(long, action = clap::ArgAction::Set)]
     gate: Option<bool>,
@@ -95,7 +95,7 @@ mod with_sumo {
     use crate::cli::common::{pick_policy, print, usage};
     use anyhow::{Context, Result};
     use mpgdrive::atomic;
-    use mpgdrive::config::{Config, ScenarioKind};
+    use mpgdrive::config::Config;
     use mpgdrive::policy::PolicyNet;
     use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
     use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, Shields, run_controller};
@@ -117,7 +117,7 @@ mod with_sumo {
                 .transpose()?;
             controllers.push((kind, net));
         }
-        let gate = args.gate.unwrap_or(config.scenario.kind == ScenarioKind::Paper);
+        let gate = args.gate.unwrap_or(false);
         config.sim.merge_gate = gate;
         std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
         let runs = run_all(&config, &settings, controllers, &args.out)?;
