@@ -254,6 +254,25 @@ pub struct TrainConfig {
     /// Epochs each screened initialisation trains before the best probe objective is kept.
     #[serde(default)]
     pub screen_epochs: usize,
+    /// Extra training states with the ego close to the merge (none when absent).
+    #[serde(default)]
+    pub near_merge: Option<NearMergeConfig>,
+}
+
+/// A share of every training minibatch drawn with a slow ego close to `x_c`, where followers
+/// pass beside it: the states in which an ego that reaches `x_c` late must still wait are
+/// rare under the stratified sampling. Probe and test states keep the stratified sampling
+/// ([`crate::world::sampler::sample_training_scenes`]).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct NearMergeConfig {
+    /// Share of each minibatch, in `[0, 1]`: its last `round(share * batch)` states.
+    pub share: f64,
+    /// Range of these states' initial ego position (m); the players are placed around the
+    /// ego as in the stratified sampling.
+    pub ego_position: [f64; 2],
+    /// Range of their initial ego speed (m/s).
+    pub ego_speed: [f64; 2],
 }
 
 fn one() -> usize {
@@ -492,6 +511,26 @@ impl Config {
                 self.train.screen_epochs
             ),
         )?;
+        if let Some(n) = &t.near_merge {
+            finite("train.near_merge.share", n.share)?;
+            check(
+                "train.near_merge.share",
+                (0.0..=1.0).contains(&n.share),
+                format!("{} must lie in [0, 1]", n.share),
+            )?;
+            range(
+                "train.near_merge.ego_position",
+                n.ego_position,
+                0.0,
+                s.conflict_point,
+            )?;
+            range("train.near_merge.ego_speed", n.ego_speed, v.v_min, v.v_max)?;
+            check(
+                "train.near_merge",
+                s.kind != ScenarioKind::Traffic,
+                "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
+            )?;
+        }
         check(
             "eval.seeds",
             !self.eval.seeds.is_empty(),

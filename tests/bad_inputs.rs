@@ -202,6 +202,18 @@ fn cases() -> Vec<Case> {
             "learning_rate",
         ),
         train("zero gradient clip", smoke_with("grad_clip", "0.0"), "grad_clip"),
+        train(
+            "a near-merge share above 1",
+            smoke()
+                + "\n[train.near_merge]\nshare = 1.5\nego_position = [150.0, 178.0]\nego_speed = [0.0, 8.0]\n",
+            "train.near_merge.share",
+        ),
+        train(
+            "a near-merge ego beyond the conflict point",
+            smoke()
+                + "\n[train.near_merge]\nshare = 0.2\nego_position = [150.0, 250.0]\nego_speed = [0.0, 8.0]\n",
+            "train.near_merge.ego_position",
+        ),
         train("zero hidden width", smoke_with("hidden", "0"), "hidden"),
         train("zero epochs", smoke_with("epochs", "0"), "epochs"),
         train("zero threads", smoke_with("threads", "0"), "threads"),

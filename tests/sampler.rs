@@ -3,8 +3,9 @@
 mod common;
 
 use common::{paper, smoke};
+use mpgdrive::config::NearMergeConfig;
 use mpgdrive::world::safety::ttc;
-use mpgdrive::world::sampler::{sample_scene, sample_scenes, stratum};
+use mpgdrive::world::sampler::{sample_scene, sample_scenes, sample_training_scenes, stratum};
 use proptest::prelude::*;
 
 proptest! {
@@ -77,4 +78,48 @@ fn same_seed_same_scenes_and_batches_do_not_matter() {
     assert_eq!(all, sample_scenes(&config, 42, 0, 10));
     assert_eq!(&all[4..], &sample_scenes(&config, 42, 4, 6)[..]);
     assert_ne!(all, sample_scenes(&config, 43, 0, 10));
+}
+
+#[test]
+fn a_near_merge_share_redraws_only_the_last_states_of_a_minibatch_with_the_same_draws() {
+    let mut config = paper();
+    config.train.batch = 8;
+    assert_eq!(
+        sample_training_scenes(&config, 9, 3),
+        sample_scenes(&config, 9, 24, 8),
+        "without near_merge a minibatch is the stratified draws"
+    );
+    config.train.near_merge = Some(NearMergeConfig {
+        share: 0.3, // round(2.4) = 2 states
+        ego_position: [150.0, 178.0],
+        ego_speed: [0.0, 8.0],
+    });
+    let batch = sample_training_scenes(&config, 9, 3);
+    let plain = sample_scenes(&config, 9, 24, 8);
+    assert_eq!(batch[..6], plain[..6]);
+    let p = &config.sampling;
+    for k in 6..8 {
+        // Same stream: the same uniform draw in the stratum's cell, mapped to the new range
+        // (4 x 4 strata: cells 20 m x 3 m before, 7 m x 2 m now).
+        let (cp, cv) = stratum(&config, 24 + k);
+        let u_x = (plain[k].ego().x - p.ego_position[0]) / 20.0 - cp as f64;
+        let u_v = (plain[k].ego().v - p.ego_speed[0]) / 3.0 - cv as f64;
+        let ego = batch[k].ego();
+        assert!(
+            (ego.x - (150.0 + 7.0 * (cp as f64 + u_x))).abs() < 1e-9,
+            "state {k}: x {}",
+            ego.x
+        );
+        assert!(
+            (ego.v - 2.0 * (cv as f64 + u_v)).abs() < 1e-9,
+            "state {k}: v {}",
+            ego.v
+        );
+        // The players one headway after another from the ego, as in the stratified draw
+        // (the same headway draws).
+        for i in 1..9 {
+            let offset = |s: &mpgdrive::world::state::Scene| s.vehicles[i].x - s.ego().x;
+            assert!((offset(&batch[k]) - offset(&plain[k])).abs() < 1e-9, "player {i}");
+        }
+    }
 }

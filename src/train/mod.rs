@@ -29,7 +29,7 @@ use crate::policy::observation::{BatchPolicy, PolicyActor};
 use crate::policy::observation::{Frame, Layout, observe, tensor_features};
 use crate::world::drivers::Driver;
 use crate::world::neighbors::find_neighbors;
-use crate::world::sampler::{Purpose, purpose_seed, sample_scenes};
+use crate::world::sampler::{Purpose, purpose_seed, sample_scenes, sample_training_scenes};
 use crate::world::state::Scene;
 use curves::EpochRecord;
 use stacked::{ParamGrads, StackedNet};
@@ -241,7 +241,7 @@ impl Stack {
         let scenes: Vec<Scene> = self
             .seeds
             .iter()
-            .flat_map(|&s| sample_scenes(config, purpose_seed(s, Purpose::Train), epoch * t.batch, t.batch))
+            .flat_map(|&s| sample_training_scenes(config, purpose_seed(s, Purpose::Train), epoch))
             .collect();
         let members = self.seeds.len();
         let shards = shards_of(&self.net, &scenes, members);

@@ -69,17 +69,52 @@ pub fn sample_scenes(config: &Config, seed: u64, first: usize, count: usize) -> 
         .collect()
 }
 
+/// Training minibatch `epoch` of `seed`: scenarios `epoch * batch..(epoch + 1) * batch`,
+/// the last `round(share * batch)` of them drawn near the merge when `train.near_merge` is
+/// set: the ego's position and speed stratified in `near_merge`'s ranges instead of
+/// `sampling`'s (the same two draws), the players placed around it by the usual rules.
+pub fn sample_training_scenes(config: &Config, seed: u64, epoch: usize) -> Vec<Scene> {
+    let batch = config.train.batch;
+    let first = epoch * batch;
+    let n_near = config
+        .train
+        .near_merge
+        .as_ref()
+        .map_or(0, |n| ((n.share * batch as f64).round() as usize).min(batch));
+    (first..first + batch)
+        .map(|k| match &config.train.near_merge {
+            Some(near) if k >= first + batch - n_near => {
+                paper_scene(config, seed, k, near.ego_position, near.ego_speed)
+            }
+            _ => sample_scene(config, seed, k),
+        })
+        .collect()
+}
+
 /// The ego's initial position and speed of scenario `index`: uniform inside its stratum's cell,
 /// two draws from `rng`.
 pub fn stratified_ego(config: &Config, index: usize, rng: &mut ChaCha8Rng) -> (f64, f64) {
+    let p = &config.sampling;
+    stratified_point(config, p.ego_position, p.ego_speed, index, rng)
+}
+
+/// A position in `position` and a speed in `speed`, each range cut into the configuration's
+/// strata, uniform inside the cell of scenario `index`'s stratum: two draws from `rng`.
+fn stratified_point(
+    config: &Config,
+    position: [f64; 2],
+    speed: [f64; 2],
+    index: usize,
+    rng: &mut ChaCha8Rng,
+) -> (f64, f64) {
     let p = &config.sampling;
     let (cp, cv) = stratum(config, index);
     let cell = |range: [f64; 2], parts: usize, at: usize, u: f64| {
         let w = (range[1] - range[0]) / parts as f64;
         range[0] + w * (at as f64 + u)
     };
-    let x = cell(p.ego_position, p.strata[0], cp, rng.random::<f64>());
-    let v = cell(p.ego_speed, p.strata[1], cv, rng.random::<f64>());
+    let x = cell(position, p.strata[0], cp, rng.random::<f64>());
+    let v = cell(speed, p.strata[1], cv, rng.random::<f64>());
     (x, v)
 }
 
@@ -90,9 +125,22 @@ pub fn sample_scene(config: &Config, seed: u64, index: usize) -> Scene {
         return sample_traffic_scene(config, t, seed, index);
     }
     let p = &config.sampling;
+    paper_scene(config, seed, index, p.ego_position, p.ego_speed)
+}
+
+/// Scenario `index` of `seed` in the paper's world, the ego's position and speed stratified
+/// in `ego_position` and `ego_speed`.
+fn paper_scene(
+    config: &Config,
+    seed: u64,
+    index: usize,
+    ego_position: [f64; 2],
+    ego_speed: [f64; 2],
+) -> Scene {
+    let p = &config.sampling;
     let road = Road::new(config);
     let mut rng = scenario_rng(seed, index as u64);
-    let (ego_x, ego_v) = stratified_ego(config, index, &mut rng);
+    let (ego_x, ego_v) = stratified_point(config, ego_position, ego_speed, index, &mut rng);
     let uniform = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
 
     let target = |x: f64, v: f64| Vehicle {
