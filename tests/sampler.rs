@@ -84,6 +84,7 @@ fn same_seed_same_scenes_and_batches_do_not_matter() {
 fn a_near_merge_share_redraws_only_the_last_states_of_a_minibatch_with_the_same_draws() {
     let mut config = paper();
     config.train.batch = 8;
+    config.train.near_merge = None;
     assert_eq!(
         sample_training_scenes(&config, 9, 3),
         sample_scenes(&config, 9, 24, 8),
