@@ -1,7 +1,8 @@
 //! Training: potential-based gradient ascent (Algorithm 1) and the single-agent baseline.
 //!
-//! Each epoch draws a stratified minibatch of initial states, rolls the shared policy out in
-//! the differentiable tensor engine ([`crate::engine::tensor`], on the tape of
+//! Each epoch draws a stratified minibatch of initial states (part of it near the merge with
+//! `train.near_merge`, [`crate::world::sampler::sample_training_scenes`]), rolls the shared
+//! policy out in the differentiable tensor engine ([`crate::engine::tensor`], on the tape of
 //! [`crate::engine::tape`]; the network's own backward pass is [`StackedNet::act_on_tape`])
 //! and takes one Adam step on the gradient, back-propagated through the whole rollout, of
 //! - `mpg`: the mean discounted total potential, eq. (29), with the policy driving every player;

@@ -76,13 +76,10 @@ pub fn sample_scenes(config: &Config, seed: u64, first: usize, count: usize) -> 
 pub fn sample_training_scenes(config: &Config, seed: u64, epoch: usize) -> Vec<Scene> {
     let batch = config.train.batch;
     let first = epoch * batch;
-    let n_near = config
-        .train
-        .near_merge
-        .as_ref()
-        .map_or(0, |n| ((n.share * batch as f64).round() as usize).min(batch));
+    let near = config.train.near_merge.as_ref();
+    let n_near = near.map_or(0, |n| ((n.share * batch as f64).round() as usize).min(batch));
     (first..first + batch)
-        .map(|k| match &config.train.near_merge {
+        .map(|k| match near {
             Some(near) if k >= first + batch - n_near => {
                 paper_scene(config, seed, k, near.ego_position, near.ego_speed)
             }
