@@ -1,5 +1,5 @@
 //! Training epochs of the paper's study: `configs/paper.toml` (two threads, one shard each), 5
-//! MPG seeds side by side (stacked rollouts of 64 scenarios x 300 steps per seed,
+//! MPG seeds side by side (stacked rollouts of `train.batch` scenarios x 300 steps per seed,
 //! back-propagation, one Adam step each, then the probe rollouts), no screening. One
 //! iteration is a whole 3-epoch run (set-up and the first epoch's memory growth included); the
 //! throughput is in seed-epochs per second.
