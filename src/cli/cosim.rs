@@ -37,11 +37,11 @@ pub struct CosimArgs {
     #[arg(long, default_value_t = 900.0)]
     end: f64,
     /// The merge gate as a shield for the ramp vehicles the policy drives: true or false (the
-    /// learned policy alone). Default: false, the learned policy alone (the Table I policies
-    /// were trained without it; with it, the traffic policies' egos crawled:
-    /// docs/traffic_acceptance.md). A policy is checked against --config as it is; the results say which.
-    #[arg(long, action = clap::ArgAction::Set)]
-    gate: Option<bool>,
+    /// learned policy alone, the default: the Table I policies were trained without it; with
+    /// it, the traffic policies' egos crawled: docs/traffic_acceptance.md). A policy is checked
+    /// against --config as it is; the results say which.
+    #[arg(long, action = clap::ArgAction::Set, default_value_t = false)]
+    gate: bool,
     /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed towards any leader;
     /// 0: the policy's speed exactly, as the internal simulator).
     #[arg(long, default_value_t = 25)]
@@ -117,8 +117,7 @@ mod with_sumo {
                 .transpose()?;
             controllers.push((kind, net));
         }
-        let gate = args.gate.unwrap_or(false);
-        config.sim.merge_gate = gate;
+        config.sim.merge_gate = args.gate;
         std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
         let runs = run_all(&config, &settings, controllers, &args.out)?;
         if args.json {
@@ -129,7 +128,7 @@ mod with_sumo {
                 args.sumocfg.display(),
                 args.seed,
                 args.end,
-                if gate { "on" } else { "off" },
+                if args.gate { "on" } else { "off" },
                 cosim::markdown(&runs)
             ))?;
         }
