@@ -16,11 +16,44 @@ use crate::policy::network::{NetSpec, PolicyNet};
 use crate::policy::observation::{BatchPolicy, Layout, observation_rows};
 use std::cell::RefCell;
 use std::rc::Rc;
-use tch::{Kind, Tensor, nn};
+use tch::{Device, Kind, Tensor, nn};
 
 /// The gradient of each stacked parameter (as [`StackedNet`] holds them: per layer weight,
 /// then bias), summed over the steps of a rollout by [`StackedNet::act_on_tape`].
 pub type ParamGrads = Rc<RefCell<Option<Vec<Tensor>>>>;
+
+/// The values of a contiguous CPU float tensor, in place.
+fn floats(t: &Tensor) -> &[f32] {
+    assert!(
+        t.kind() == Kind::Float && t.device() == Device::Cpu && t.is_contiguous(),
+        "a contiguous CPU float tensor"
+    );
+    // SAFETY: a contiguous CPU float tensor holds `numel` f32 values from `data_ptr`; the
+    // storage lives as long as the borrowed handle, and nothing writes to it meanwhile (the
+    // tensors read here are this module's own products, never handed out).
+    unsafe { std::slice::from_raw_parts(t.data_ptr() as *const f32, t.numel()) }
+}
+
+/// The values of a contiguous CPU float tensor, to write in place.
+fn floats_mut(t: &mut Tensor) -> &mut [f32] {
+    assert!(
+        t.kind() == Kind::Float && t.device() == Device::Cpu && t.is_contiguous(),
+        "a contiguous CPU float tensor"
+    );
+    // SAFETY: as in `floats`; the exclusive borrow of the handle stands for its storage,
+    // which no other handle shares (the tensors written here are fresh products).
+    unsafe { std::slice::from_raw_parts_mut(t.data_ptr() as *mut f32, t.numel()) }
+}
+
+/// A copy of a parameter's values.
+fn floats_of(t: &Tensor) -> Vec<f32> {
+    Vec::<f32>::try_from(t.flatten(0, -1)).expect("a CPU float tensor")
+}
+
+/// The derivative of `leaky_relu` at an output `h`: it is positive exactly where its input is.
+fn leaky_slope(h: f32) -> f32 {
+    if h > 0.0 { 1.0 } else { LEAKY_SLOPE as f32 }
+}
 
 /// libtorch's default slope of `leaky_relu` below 0.
 const LEAKY_SLOPE: f64 = 0.01;
@@ -98,40 +131,69 @@ impl StackedNet {
     /// rows split evenly among the members, in member order) as one node of the tape: the
     /// forward pass now, without libtorch's autograd; when the tape runs back, the backward
     /// pass by hand, into the features and into `grads`.
+    ///
+    /// The activations run in place and their derivatives are plain loops over the products'
+    /// values (the output layer's fused with the second activation's), which spares a step
+    /// four arrays of the hidden layers' size; every value is the same bits as libtorch's own
+    /// operations gave.
     pub fn act_on_tape(&self, layout: Layout, features: &[Var], grads: &ParamGrads) -> Var {
         let (rows, cols) = (features[0].rows(), features[0].cols());
-        let dim = self.spec.obs_dim as i64;
-        let obs = Tensor::from_slice(&observation_rows(layout, features)).reshape([self.members, -1, dim]);
+        let (dim, hidden) = (self.spec.obs_dim, self.spec.hidden);
+        let mut x = observation_rows(layout, features);
+        for row in x.chunks_mut(dim) {
+            row.iter_mut()
+                .zip(&self.spec.obs_scale)
+                .for_each(|(v, s)| *v *= s);
+        }
+        let x0 = Tensor::from_slice(&x).reshape([self.members, -1, dim as i64]);
         let w: Vec<Tensor> = self.params().map(Tensor::detach).collect();
-        let (x0, h1, h2, t) = tch::no_grad(|| {
-            let x0 = obs * &self.scale;
-            let h1 = w[1].baddbmm(&x0, &w[0], 1.0, 1.0).leaky_relu();
-            let h2 = w[3].baddbmm(&h1, &w[2], 1.0, 1.0).leaky_relu();
-            let z = (&h2 * w[4].transpose(1, 2)).sum_dim_intlist(-1, false, None) + w[5].squeeze_dim(-1);
-            (x0, h1, h2, z.tanh())
-        });
         let scale = self.spec.action_scale;
-        let actions = Vec::<f32>::try_from((&t * scale).flatten(0, -1)).expect("a CPU float tensor");
-        let (input_scale, grads) = (self.scale.shallow_clone(), grads.clone());
-        let n_features = features.len();
-        let actions = Var::constant(actions.into_iter().map(f64::from).collect(), rows, cols);
+        let (h1, h2, t, actions) = tch::no_grad(|| {
+            let mut h1 = w[1].baddbmm(&x0, &w[0], 1.0, 1.0);
+            let _ = h1.leaky_relu_();
+            let mut h2 = w[3].baddbmm(&h1, &w[2], 1.0, 1.0);
+            let _ = h2.leaky_relu_();
+            let z = (&h2 * w[4].transpose(1, 2)).sum_dim_intlist(-1, false, None) + w[5].squeeze_dim(-1);
+            let t = z.tanh();
+            let actions = &t * scale;
+            (h1, h2, t, actions)
+        });
+        let actions = Var::constant(
+            floats(&actions).iter().map(|&a| f64::from(a)).collect(),
+            rows,
+            cols,
+        );
+        let (input_scale, n_features) = (self.spec.obs_scale.clone(), features.len());
+        let grads = grads.clone();
         actions.recorded(&features.iter().collect::<Vec<_>>(), move |g| {
-            let d = tch::no_grad(|| {
+            let d_obs = tch::no_grad(|| {
                 let g = Tensor::from_slice(g).to_kind(Kind::Float).reshape(t.size());
-                // The layers' outputs are positive exactly where their inputs are.
-                let leaky = |out: &Tensor, grad: &Tensor| out.leaky_relu_backward(grad, LEAKY_SLOPE, true);
                 let gz: Tensor = g * scale * (1.0 - t.square()); // [m, r]
                 let dw3 = (&h2 * gz.unsqueeze(-1))
                     .sum_dim_intlist(1, false, None)
                     .unsqueeze(-1);
                 let db3 = gz.sum_dim_intlist(1, true, None).unsqueeze(-1);
-                let dh2 = leaky(&h2, &(gz.unsqueeze(-1) * w[4].transpose(1, 2)));
+                // The output layer and the second activation, fused row by row.
+                let w3 = floats_of(&w[4]);
+                let per = gz.size()[1] as usize;
+                let mut dh2 = Tensor::empty(h2.size(), (Kind::Float, Device::Cpu));
+                let rows = floats_mut(&mut dh2)
+                    .chunks_exact_mut(hidden)
+                    .zip(floats(&h2).chunks_exact(hidden));
+                for (i, ((d, h), &gz)) in rows.zip(floats(&gz)).enumerate() {
+                    let own = &w3[i / per * hidden..][..hidden];
+                    for ((d, &h), &w) in d.iter_mut().zip(h).zip(own) {
+                        *d = leaky_slope(h) * (gz * w);
+                    }
+                }
                 let dw2 = h1.transpose(1, 2).bmm(&dh2);
                 let db2 = dh2.sum_dim_intlist(1, true, None);
-                let dh1 = leaky(&h1, &dh2.bmm(&w[2].transpose(1, 2)));
+                let mut dh1 = dh2.bmm(&w[2].transpose(1, 2));
+                for (d, &h) in floats_mut(&mut dh1).iter_mut().zip(floats(&h1)) {
+                    *d *= leaky_slope(h);
+                }
                 let dw1 = x0.transpose(1, 2).bmm(&dh1);
                 let db1 = dh1.sum_dim_intlist(1, true, None);
-                let d_obs = dh1.bmm(&w[0].transpose(1, 2)) * &input_scale;
                 let step = [dw1, db1, dw2, db2, dw3, db3];
                 let mut sums = grads.borrow_mut();
                 match sums.as_mut() {
@@ -140,12 +202,14 @@ impl StackedNet {
                     }),
                     None => *sums = Some(step.into()),
                 }
-                d_obs
+                dh1.bmm(&w[0].transpose(1, 2))
             });
-            let d = Vec::<f32>::try_from(d.flatten(0, -1)).expect("a CPU float tensor");
-            let dim = dim as usize;
+            let d = floats(&d_obs);
             (0..n_features)
-                .map(|j| Some(d.iter().skip(j).step_by(dim).map(|&x| f64::from(x)).collect()))
+                .map(|j| {
+                    let s = input_scale[j];
+                    Some(d.iter().skip(j).step_by(dim).map(|&x| f64::from(x * s)).collect())
+                })
                 .collect()
         })
     }
