@@ -14,6 +14,7 @@
 
 pub mod curves;
 pub mod stacked;
+pub mod workers;
 
 use crate::atomic::with_suffix;
 use crate::config::Config;
@@ -39,6 +40,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 use tch::{Kind, Tensor, nn::OptimizerConfig};
+use workers::Workers;
 
 /// A training failure.
 #[derive(Debug, thiserror::Error)]
@@ -236,7 +238,12 @@ impl Stack {
     /// One epoch of Algorithm 1 for every member: gradient ascent on its objective over its
     /// minibatch of training states (the learning-rate schedule of `epoch`), all members in
     /// one rollout per shard ([`SHARDS`]). Returns each member's minibatch objective.
-    fn gradient_step(&mut self, config: &Config, epoch: usize) -> Result<Vec<f64>, TrainError> {
+    fn gradient_step<'env>(
+        &mut self,
+        config: &'env Config,
+        workers: &Workers<'env>,
+        epoch: usize,
+    ) -> Result<Vec<f64>, TrainError> {
         let t = &config.train;
         self.opt.set_lr(learning_rate(t, epoch));
         let scenes: Vec<Scene> = self
@@ -246,8 +253,9 @@ impl Stack {
             .collect();
         let members = self.seeds.len();
         let shards = shards_of(&self.net, &scenes, members);
-        let results = in_shards(t.threads, shards, |(net, scenes)| {
-            shard_gradient(config, self.mode, &net, &scenes, members)
+        let mode = self.mode;
+        let results = workers.run(shards, move |(net, scenes)| {
+            shard_gradient(config, mode, &net, &scenes, members)
         });
         let mut values = vec![0.0; members];
         let mut sums: Option<Vec<Tensor>> = None;
@@ -304,38 +312,6 @@ fn shards_of(net: &StackedNet, scenes: &[Scene], members: usize) -> Vec<(Stacked
         .collect()
 }
 
-/// Runs `work` on every shard, the first on the calling thread and the others on their own
-/// threads when `threads` > 1, each with one libtorch thread. Results in shard order.
-fn in_shards<T: Send, R: Send>(threads: usize, shards: Vec<T>, work: impl Fn(T) -> R + Sync) -> Vec<R> {
-    tch::set_num_threads(1);
-    if threads <= 1 {
-        return shards.into_iter().map(work).collect();
-    }
-    std::thread::scope(|s| {
-        let work = &work;
-        let mut shards = shards.into_iter();
-        let first = shards.next();
-        let others: Vec<_> = shards
-            .map(|shard| {
-                s.spawn(move || {
-                    // A new thread starts with libtorch's default thread count.
-                    tch::set_num_threads(1);
-                    work(shard)
-                })
-            })
-            .collect();
-        first
-            .map(work)
-            .into_iter()
-            .chain(
-                others
-                    .into_iter()
-                    .map(|h| h.join().expect("a training shard panicked")),
-            )
-            .collect()
-    })
-}
-
 /// One shard's part of a gradient step: each member's summed objective over its scenes of
 /// the shard, and the gradients of minus the members' mean objectives (over the whole
 /// minibatch, `train.batch` scenes each) restricted to these scenes.
@@ -382,17 +358,22 @@ fn shard_gradient(
 /// Rolls every member out on its probe states (`probe`: each member's scenes in turn, as
 /// many for each) in the scalar engine, the members' networks in one batched call per step.
 /// Returns the outcomes, member after member.
-fn probe_outcomes(config: &Config, mode: Mode, net: &StackedNet, probe: &[Scene]) -> Vec<EpisodeOutcome> {
-    let opts = RolloutOptions {
-        threads: 1,
-        recording: Recording::Summary,
-        ..RolloutOptions::from_config(config)
-    };
+fn probe_outcomes<'env>(
+    config: &'env Config,
+    workers: &Workers<'env>,
+    mode: Mode,
+    net: &StackedNet,
+    probe: &[Scene],
+) -> Vec<EpisodeOutcome> {
     let members = net.members();
-    let shards = in_shards(
-        config.train.threads,
+    let shards = workers.run(
         shards_of(net, probe, members),
-        |(net, scenes)| {
+        move |(net, scenes): (StackedNet, Vec<Scene>)| {
+            let opts = RolloutOptions {
+                threads: 1,
+                recording: Recording::Summary,
+                ..RolloutOptions::from_config(config)
+            };
             let frozen = Mutex::new(Some(net));
             // One rollout worker: the batched call needs every member's rows.
             rollout(config, &opts, &scenes, || {
@@ -432,14 +413,15 @@ fn mean_objectives(mode: Mode, outcomes: &[EpisodeOutcome], members: usize) -> V
 
 /// Each member's epoch record on the probe states (all but its training objective, epoch
 /// number and wall time), and the new probe actions.
-fn probe(
-    config: &Config,
+fn probe<'env>(
+    config: &'env Config,
+    workers: &Workers<'env>,
     mode: Mode,
     net: &mut StackedNet,
     probe: &[Scene],
     previous: &Tensor,
 ) -> (Vec<EpochRecord>, Tensor) {
-    let outcomes = probe_outcomes(config, mode, net, probe);
+    let outcomes = probe_outcomes(config, workers, mode, net, probe);
     let actions = probe_actions(config, net, probe);
     let msd = Vec::<f64>::try_from(
         (&actions - previous)
@@ -514,7 +496,12 @@ pub struct InitScreening {
 
 /// Screens `train.init_candidates` initialisations of every run (see [`InitScreening`]), all
 /// candidates of all runs trained side by side.
-fn screen_inits(config: &Config, mode: Mode, seeds: &[u64]) -> Result<Vec<InitScreening>, TrainError> {
+fn screen_inits<'env>(
+    config: &'env Config,
+    workers: &Workers<'env>,
+    mode: Mode,
+    seeds: &[u64],
+) -> Result<Vec<InitScreening>, TrainError> {
     let t = &config.train;
     let spec = NetSpec::new(Layout::of(config), t.hidden, config.vehicle.max_accel);
     let members: Vec<(PolicyNet, u64)> = seeds
@@ -525,10 +512,10 @@ fn screen_inits(config: &Config, mode: Mode, seeds: &[u64]) -> Result<Vec<InitSc
     let (nets, seeds): (Vec<PolicyNet>, Vec<u64>) = members.into_iter().unzip();
     let mut stack = Stack::new(config, mode, &nets, seeds)?;
     for epoch in 0..t.screen_epochs {
-        stack.gradient_step(config, epoch)?;
+        stack.gradient_step(config, workers, epoch)?;
     }
     let probe_set = member_seeds_probe(config, &stack.seeds);
-    let outcomes = probe_outcomes(config, mode, &stack.net, &probe_set);
+    let outcomes = probe_outcomes(config, workers, mode, &stack.net, &probe_set);
     let objectives = mean_objectives(mode, &outcomes, nets.len());
     let screenings = objectives
         .chunks(t.init_candidates)
@@ -679,8 +666,22 @@ pub fn train_all(
     stop: &AtomicBool,
     on_epoch: &mut dyn FnMut(usize, &EpochRecord),
 ) -> Result<Vec<TrainOutcome>, TrainError> {
-    let t = &config.train;
     keep_freed_memory();
+    std::thread::scope(|scope| {
+        let workers = Workers::start(scope, config.train.threads);
+        train_on(config, &workers, runs, stop, on_epoch)
+    })
+}
+
+/// [`train_all`] with its shards on `workers`.
+fn train_on<'env>(
+    config: &'env Config,
+    workers: &Workers<'env>,
+    runs: &[TrainRun],
+    stop: &AtomicBool,
+    on_epoch: &mut dyn FnMut(usize, &EpochRecord),
+) -> Result<Vec<TrainOutcome>, TrainError> {
+    let t = &config.train;
     let mut starts = runs
         .iter()
         .map(|run| start_of(config, run))
@@ -692,7 +693,7 @@ pub fn train_all(
             .collect();
         if t.init_candidates > 1 && !fresh.is_empty() {
             let seeds: Vec<u64> = fresh.iter().map(|&r| runs[r].seed).collect();
-            for (&r, screening) in fresh.iter().zip(screen_inits(config, mode, &seeds)?) {
+            for (&r, screening) in fresh.iter().zip(screen_inits(config, workers, mode, &seeds)?) {
                 starts[r].net = PolicyNet::seeded(
                     NetSpec::new(Layout::of(config), t.hidden, config.vehicle.max_accel),
                     init_seed(runs[r].seed, screening.chosen),
@@ -719,7 +720,7 @@ pub fn train_all(
             .iter()
             .map(|&r| (&runs[r], starts[r].take().expect("one group per run")))
             .collect();
-        let outcomes = train_members(config, &members, stop, &mut |k, record| {
+        let outcomes = train_members(config, workers, &members, stop, &mut |k, record| {
             on_epoch(group[k], record)
         })?;
         for (&r, outcome) in group.iter().zip(outcomes) {
@@ -733,8 +734,9 @@ pub fn train_all(
 }
 
 /// The training loop of some runs of one mode that start at the same epoch, in one stack.
-fn train_members(
-    config: &Config,
+fn train_members<'env>(
+    config: &'env Config,
+    workers: &Workers<'env>,
     members: &[(&TrainRun, Start)],
     stop: &AtomicBool,
     on_epoch: &mut dyn FnMut(usize, &EpochRecord),
@@ -752,8 +754,8 @@ fn train_members(
     let first = records[0].len();
     let start = Instant::now();
     for epoch in first..t.epochs {
-        let train_objectives = stack.gradient_step(config, epoch)?;
-        let (probed, actions) = probe(config, mode, &mut stack.net, &probe_set, &previous);
+        let train_objectives = stack.gradient_step(config, workers, epoch)?;
+        let (probed, actions) = probe(config, workers, mode, &mut stack.net, &probe_set, &previous);
         previous = actions;
         for (k, ((_, s), mut record)) in members.iter().zip(probed).enumerate() {
             record.epoch = epoch + 1;
