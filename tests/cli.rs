@@ -165,6 +165,21 @@ fn a_policy_trained_under_other_world_rules_is_refused_by_setting() {
         &[],
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+    // Another reward is no world rule: evaluated, with a warning naming the term.
+    assert!(tiny.contains("epsilon = 0.1 "));
+    let out = eval(
+        "rules-reward",
+        tiny.replace("epsilon = 0.1 ", "epsilon = 0.05 "),
+        &[],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr
+            .contains("warning: the policy of seed 0 was trained with reward.epsilon = 0.1, this run's 0.05"),
+        "{stderr}"
+    );
     let out = eval(
         "rules-ablation",
         tiny.replace("merge_gate = false ", "merge_gate = true "),

@@ -55,6 +55,14 @@ pub fn run(args: EvalArgs) -> Result<ExitCode> {
         Some(path) => load_policies(path, config, rules)?,
         None => Vec::new(),
     };
+    let trained_otherwise = policies.iter().chain(&ne_policies).find_map(|(_, side)| {
+        mpgdrive::policy::file::reward_difference(side, config).map(|d| (side.seed, d))
+    });
+    if let Some((seed, difference)) = trained_otherwise {
+        eprintln!(
+            "warning: the policy of seed {seed} was trained with {difference}: the returns and potentials reported are this run's reward"
+        );
+    }
     let start = Instant::now();
     if config.scenario.kind == ScenarioKind::Traffic {
         return traffic(&args, config, &policies, common.threads, start);

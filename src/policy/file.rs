@@ -129,6 +129,29 @@ pub fn check_rules(path: &Path, sidecar: &Sidecar, run: &Config) -> Result<(), P
     }
 }
 
+/// The first reward setting of `run` other than the one `sidecar`'s policy was trained with,
+/// as "key = trained, this run's", or `None`. The policy acts the same under another reward
+/// (it is no world rule), but the returns and potentials a run reports are its own reward's.
+pub fn reward_difference(sidecar: &Sidecar, run: &Config) -> Option<String> {
+    let terms = |c: &Config| {
+        let r = &c.reward;
+        [
+            ("reward.v_c", r.v_c),
+            ("reward.epsilon", r.epsilon),
+            ("reward.w_speed", r.w_speed),
+            ("reward.w_comfort", r.w_comfort),
+            ("reward.w_ttc", r.w_ttc),
+            ("reward.w_conflict", r.w_conflict),
+        ]
+    };
+    let trained = terms(&sidecar.config);
+    trained
+        .iter()
+        .zip(terms(run))
+        .find(|(a, b)| a.1 != b.1)
+        .map(|((key, was), (_, now))| format!("{key} = {was}, this run's {now}"))
+}
+
 /// How to use a policy under other rules anyway (the commands that allow it).
 const ALLOW_HINT: &str = " (eval --allow-policy-mismatch evaluates it anyway)";
 
