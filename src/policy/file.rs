@@ -116,10 +116,9 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 15] {
 /// Refuses a policy (`path`, its sidecar) trained under other world rules than `run`'s,
 /// naming the first setting that differs.
 pub fn check_rules(path: &Path, sidecar: &Sidecar, run: &Config) -> Result<(), PolicyError> {
-    let trained = world_rules(&sidecar.config);
-    match trained.iter().zip(world_rules(run)).find(|(a, b)| a.1 != b.1) {
+    match first_difference(&world_rules(&sidecar.config), &world_rules(run)) {
         None => Ok(()),
-        Some(((key, was), (_, now))) => Err(PolicyError::Mismatch {
+        Some((key, was, now)) => Err(PolicyError::Mismatch {
             path: path.to_path_buf(),
             message: format!(
                 "trained with {key} = {was}, this run's configuration has {now}; use the configuration it was trained with{}",
@@ -144,12 +143,20 @@ pub fn reward_difference(sidecar: &Sidecar, run: &Config) -> Option<String> {
             ("reward.w_conflict", r.w_conflict),
         ]
     };
-    let trained = terms(&sidecar.config);
-    trained
-        .iter()
-        .zip(terms(run))
-        .find(|(a, b)| a.1 != b.1)
-        .map(|((key, was), (_, now))| format!("{key} = {was}, this run's {now}"))
+    first_difference(&terms(&sidecar.config), &terms(run))
+        .map(|(key, was, now)| format!("{key} = {was}, this run's {now}"))
+}
+
+/// The first setting whose value differs between two lists of the same keys: (key, the
+/// first's value, the second's).
+fn first_difference(
+    a: &[(&'static str, f64)],
+    b: &[(&'static str, f64)],
+) -> Option<(&'static str, f64, f64)> {
+    a.iter()
+        .zip(b)
+        .find(|(x, y)| x.1 != y.1)
+        .map(|(&(key, was), &(_, now))| (key, was, now))
 }
 
 /// How to use a policy under other rules anyway (the commands that allow it).
