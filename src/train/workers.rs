@@ -4,7 +4,7 @@
 //! Long-lived workers keep their memory. A thread started for each step got glibc's arena of
 //! the thread before it only when no other thread had taken it meanwhile; otherwise it made a
 //! new arena and faulted in another gigabyte of pages (measured: 709k instead of 481k page
-//! faults in some 10-epoch runs of `configs/paper.toml`, 938k in 20-epoch runs, a second
+//! faults in some 10-epoch runs of `configs/paper.toml`, 938k in some 20-epoch runs, 2-3.5 s
 //! each time).
 
 use std::sync::Arc;
