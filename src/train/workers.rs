@@ -75,3 +75,28 @@ impl<'env> Workers<'env> {
         out.into_iter().map(|(_, r)| r).collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn results_come_back_in_shard_order_whatever_the_threads() {
+        // Five shards on 1, 2 and 3 threads (round robin beyond the workers); each result names
+        // the shard and the thread that ran it.
+        let caller = std::thread::current().id();
+        for threads in [1, 2, 3] {
+            let out: Vec<(u32, bool)> = std::thread::scope(|scope| {
+                let workers = Workers::start(scope, threads);
+                workers.run((0..5u32).collect(), move |k| {
+                    (k * k, std::thread::current().id() == caller)
+                })
+            });
+            assert_eq!(out.iter().map(|r| r.0).collect::<Vec<_>>(), [0, 1, 4, 9, 16]);
+            // The first shard always runs on the calling thread; the others only without workers.
+            let on_caller: Vec<bool> = out.iter().map(|r| r.1).collect();
+            let expected = [true, threads == 1, threads == 1, threads == 1, threads == 1];
+            assert_eq!(on_caller, expected, "{threads} threads");
+        }
+    }
+}
