@@ -22,12 +22,17 @@ use tch::{Device, Kind, Tensor, nn};
 /// then bias), summed over the steps of a rollout by [`StackedNet::act_on_tape`].
 pub type ParamGrads = Rc<RefCell<Option<Vec<Tensor>>>>;
 
-/// The values of a contiguous CPU float tensor, in place.
-fn floats(t: &Tensor) -> &[f32] {
+/// Panics unless `t` is a contiguous CPU float tensor (what `floats` and `floats_mut` read).
+fn assert_plain_floats(t: &Tensor) {
     assert!(
         t.kind() == Kind::Float && t.device() == Device::Cpu && t.is_contiguous(),
         "a contiguous CPU float tensor"
     );
+}
+
+/// The values of a contiguous CPU float tensor, in place.
+fn floats(t: &Tensor) -> &[f32] {
+    assert_plain_floats(t);
     // SAFETY: a contiguous CPU float tensor holds `numel` f32 values from `data_ptr`; the
     // storage lives as long as the borrowed handle, and nothing writes to it meanwhile (the
     // tensors read here are this module's own products, never handed out).
@@ -36,10 +41,7 @@ fn floats(t: &Tensor) -> &[f32] {
 
 /// The values of a contiguous CPU float tensor, to write in place.
 fn floats_mut(t: &mut Tensor) -> &mut [f32] {
-    assert!(
-        t.kind() == Kind::Float && t.device() == Device::Cpu && t.is_contiguous(),
-        "a contiguous CPU float tensor"
-    );
+    assert_plain_floats(t);
     // SAFETY: as in `floats`; the exclusive borrow of the handle stands for its storage,
     // which no other handle shares (the tensors written here are fresh products).
     unsafe { std::slice::from_raw_parts_mut(t.data_ptr() as *mut f32, t.numel()) }
