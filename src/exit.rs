@@ -38,6 +38,12 @@ impl UserFacing for crate::policy::file::PolicyError {
     }
 }
 
+impl UserFacing for crate::policy::ensemble::EnsembleError {
+    fn is_user_error(&self) -> bool {
+        true // policies of one directory that do not fit together
+    }
+}
+
 impl UserFacing for crate::eval::study::EvalError {
     fn is_user_error(&self) -> bool {
         use crate::eval::study::EvalError as E;
@@ -128,6 +134,7 @@ fn user_facing<'a>(e: &'a (dyn Error + 'static)) -> Option<&'a dyn UserFacing> {
         UsageError,
         crate::config::ConfigError,
         crate::policy::file::PolicyError,
+        crate::policy::ensemble::EnsembleError,
         crate::eval::study::EvalError,
         crate::train::TrainError,
         crate::sumo::SumoError,

@@ -115,7 +115,7 @@ fn sumo_tracks(
         geometry,
         positions,
         ControllerKind::Mpg,
-        Some(net),
+        Some(net.into()),
         ControlModes::EXACT,
     );
     let mut tracks = Vec::new();

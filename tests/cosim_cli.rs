@@ -83,6 +83,13 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
             r["sumo_version"]
         );
         assert!((r["simulated"].as_f64().unwrap() - 60.0).abs() < 1e-9);
+        // From a directory every seed drives, as one policy; SUMO's drivers have none.
+        let seeds: &[u64] = if r["controller"] == "sumo" {
+            &[]
+        } else {
+            &[0, 1, 2, 3, 4]
+        };
+        assert_eq!(r["policy_seeds"], serde_json::json!(seeds), "{}", r["controller"]);
     }
     for file in [
         "cosim.md",
@@ -122,6 +129,90 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let plain = Path::new(env!("CARGO_MANIFEST_DIR")).join(plain);
     assert!(plain.join("cosim.md").is_file() && !plain.join("timespace_sumo.png").exists());
+}
+
+#[test]
+fn one_seed_drives_alone_and_differently_from_the_mean_of_the_seeds() {
+    let dir = temp_dir("seeds");
+    let run = |extra: &[&str], name: &str| {
+        let args = [&["--controllers", "mpg", "--end", "60", "--no-diagrams"], extra].concat();
+        let out = dir.join(name);
+        let (runs, _) = common::cosim_json(&args, Path::new(CFG), &out);
+        let md = std::fs::read_to_string(out.join("cosim.md")).unwrap();
+        (runs[0].clone(), md)
+    };
+    let (alone, md) = run(&["--policy-seed", "2"], "alone");
+    assert_eq!(alone["policy_seeds"], serde_json::json!([2]));
+    assert!(md.contains("| Policy (training seeds) | seed 2 |"), "{md}");
+    let (mean, md) = run(&[], "mean");
+    assert!(
+        md.contains("| Policy (training seeds) | mean of seeds 0, 1, 2, 3, 4 |"),
+        "{md}"
+    );
+    // The same egos (same routes and SUMO seed), driven by other actions.
+    let speeds = |r: &serde_json::Value| -> Vec<f64> {
+        r["egos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["metrics"]["mean_speed"].as_f64().unwrap())
+            .collect()
+    };
+    let (a, m) = (speeds(&alone), speeds(&mean));
+    assert!(!a.is_empty() && a.len() == m.len(), "{a:?} {m:?}");
+    assert!(a.iter().zip(&m).any(|(x, y)| (x - y).abs() > 1e-6), "{a:?} {m:?}");
+}
+
+#[test]
+fn seeds_of_two_network_shapes_are_refused_as_one_policy() {
+    use mpgdrive::policy::{NetSpec, PolicyNet, file, observation::Layout};
+    let dir = temp_dir("shapes");
+    let set = dir.join("set");
+    std::fs::create_dir_all(&set).unwrap();
+    for ext in ["json", "safetensors"] {
+        std::fs::copy(
+            format!("policies/traffic/mpg/seed0.{ext}"),
+            set.join(format!("seed0.{ext}")),
+        )
+        .unwrap();
+    }
+    // Seed 9: the same world and layout, 8 hidden units instead of 64.
+    let text = std::fs::read_to_string("policies/traffic/mpg/seed0.json").unwrap();
+    let mut side: file::Sidecar = serde_json::from_str(&text).unwrap();
+    let narrow = PolicyNet::seeded(NetSpec::new(Layout::Traffic, 8, side.net.action_scale), 9);
+    side.seed = 9;
+    side.net = narrow.spec.clone();
+    file::save(&set.join("seed9"), &narrow, &side).unwrap();
+    let out = bin()
+        .args(["cosim", "--sumocfg", CFG, "--controllers", "mpg", "--end", "5"])
+        .arg("--policy")
+        .arg(&set)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert_rejected(
+        &out,
+        &["do not fit together", "8 hidden units", "64 hidden units"],
+    );
+    assert!(!dir.join("out").exists());
+    // Either seed alone deploys.
+    let (runs, _) = common::cosim_json(
+        &[
+            "--controllers",
+            "mpg",
+            "--end",
+            "5",
+            "--no-diagrams",
+            "--policy-seed",
+            "9",
+            "--policy",
+            set.to_str().unwrap(),
+        ],
+        Path::new(CFG),
+        &dir.join("nine"),
+    );
+    assert_eq!(runs[0]["policy_seeds"], serde_json::json!([9]));
 }
 
 #[test]

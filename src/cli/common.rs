@@ -1,10 +1,14 @@
 //! What several commands share: the common arguments, printing to stdout, usage errors and
-//! picking one policy of a directory.
+//! picking the policies of a directory.
 
+#[cfg(feature = "sumo")]
+use anyhow::Context as _;
 use anyhow::Result;
 use clap::Args;
 use mpgdrive::config::{Config, ScenarioKind};
 use mpgdrive::eval::study::{Rules, load_policies};
+#[cfg(feature = "sumo")]
+use mpgdrive::policy::PolicyEnsemble;
 use mpgdrive::policy::file::Sidecar;
 use mpgdrive::policy::{Mode, PolicyNet};
 use std::path::{Path, PathBuf};
@@ -118,18 +122,42 @@ pub fn print(text: &str) -> Result<()> {
     Ok(())
 }
 
-/// One policy from a file or a directory of seeds: `seed`, or else the lowest seed.
-pub fn pick_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<mpgdrive::policy::PolicyNet> {
-    let mut policies = load_policies(path, config, Rules::Same)?;
-    policies.sort_by_key(|(_, side)| side.seed);
-    let index = match seed {
-        None => 0,
-        Some(s) => policies
-            .iter()
-            .position(|(_, side)| side.seed == s)
-            .ok_or_else(|| usage(format!("{}: no policy of seed {s}", path.display())))?,
+/// The policies of a file or a directory of seeds, sorted by seed: `seed`'s alone when given.
+fn select_policies(path: &Path, seed: Option<u64>, config: &Config) -> Result<Vec<(PolicyNet, Sidecar)>> {
+    let policies = load_policies(path, config, Rules::Same)?;
+    let Some(s) = seed else {
+        return Ok(policies);
     };
-    Ok(policies.swap_remove(index).0)
+    let one = policies
+        .into_iter()
+        .find(|(_, side)| side.seed == s)
+        .ok_or_else(|| usage(format!("{}: no policy of seed {s}", path.display())))?;
+    Ok(vec![one])
+}
+
+/// One policy from a file or a directory of seeds: `seed`, or else the lowest seed.
+pub fn pick_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<PolicyNet> {
+    Ok(select_policies(path, seed, config)?.swap_remove(0).0)
+}
+
+/// The policy a deployment drives with, and the training seeds it comes from.
+#[cfg(feature = "sumo")]
+pub struct Deployed {
+    /// One network, or several acting as one (the mean of their actions).
+    pub policy: PolicyEnsemble,
+    /// Their training seeds.
+    pub seeds: Vec<u64>,
+}
+
+/// `seed`'s network of a file or directory, or else every seed as one ensemble.
+#[cfg(feature = "sumo")]
+pub fn deployed_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<Deployed> {
+    let (nets, seeds): (Vec<_>, Vec<_>) = select_policies(path, seed, config)?
+        .into_iter()
+        .map(|(net, side)| (net, side.seed))
+        .unzip();
+    let policy = PolicyEnsemble::new(nets).with_context(|| format!("{}", path.display()))?;
+    Ok(Deployed { policy, seeds })
 }
 
 /// `--threads`: at least 1; all cores when not given.

@@ -24,7 +24,8 @@ pub struct CosimArgs {
     merge: Option<PathBuf>,
     #[command(flatten)]
     policies: PolicyPair,
-    /// Which seed's policy to use from a directory (default: the lowest).
+    /// Which seed's policy drives, from a directory (default: every seed, as one policy: each
+    /// vehicle's action is the mean of the seeds' actions).
     #[arg(long)]
     policy_seed: Option<u64>,
     /// Controllers to compare, comma-separated: mpg, sarl, sumo.
@@ -92,11 +93,10 @@ pub use with_sumo::run;
 #[cfg(feature = "sumo")]
 mod with_sumo {
     use super::CosimArgs;
-    use crate::cli::common::{pick_policy, print, usage};
+    use crate::cli::common::{Deployed, deployed_policy, print, usage};
     use anyhow::{Context, Result};
     use mpgdrive::atomic;
     use mpgdrive::config::Config;
-    use mpgdrive::policy::PolicyNet;
     use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
     use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, Shields, run_controller};
     use mpgdrive::sumo::{ControlModes, ControllerKind, MergeGeometry};
@@ -113,7 +113,7 @@ mod with_sumo {
         for &kind in &args.controllers {
             let net = kind
                 .mode()
-                .map(|mode| pick_policy(&args.policies.of(mode, &config), args.policy_seed, &config))
+                .map(|mode| deployed_policy(&args.policies.of(mode, &config), args.policy_seed, &config))
                 .transpose()?;
             controllers.push((kind, net));
         }
@@ -207,13 +207,15 @@ mod with_sumo {
     fn run_all(
         config: &Config,
         settings: &CosimSettings,
-        controllers: Vec<(ControllerKind, Option<PolicyNet>)>,
+        controllers: Vec<(ControllerKind, Option<Deployed>)>,
         out: &Path,
     ) -> Result<Vec<ControllerRun>> {
         let mut runs = Vec::new();
-        for (kind, net) in controllers {
-            match run_controller(config, settings, kind, net) {
-                Ok(run) => {
+        for (kind, policy) in controllers {
+            let (policy, seeds) = policy.map(|d| (d.policy, d.seeds)).unzip();
+            match run_controller(config, settings, kind, policy) {
+                Ok(mut run) => {
+                    run.policy_seeds = seeds.unwrap_or_default();
                     eprintln!(
                         "cosim: {} done: {} egos over {:.0} s of SUMO time",
                         kind.name(),

@@ -111,6 +111,11 @@ impl PolicyNet {
         self.layers[2].forward(&x).tanh().squeeze_dim(-1) * self.spec.action_scale
     }
 
+    /// Layer `k` (0 and 1 hidden, 2 the output).
+    pub(crate) fn layer(&self, k: usize) -> &nn::Linear {
+        &self.layers[k]
+    }
+
     /// An independent copy (for another thread).
     pub fn try_clone(&self) -> Result<Self, tch::TchError> {
         let mut copy = PolicyNet::new(self.spec.clone());

@@ -17,7 +17,7 @@
 //! # fn run(config: mpgdrive::Config, geometry: MergeGeometry, positions: LanePositions, policy: mpgdrive::policy::PolicyNet)
 //! # -> Result<(), mpgdrive::sumo::SumoError> {
 //! let mut sumo = Sumo::start(Backend::Libsumo, &["sumo".into(), "-c".into(), "x.sumocfg".into()])?;
-//! let mut controller = Controller::new(config, geometry, positions, ControllerKind::Mpg, Some(policy), ControlModes::SAFE);
+//! let mut controller = Controller::new(config, geometry, positions, ControllerKind::Mpg, Some(policy.into()), ControlModes::SAFE);
 //! while sumo.min_expected()? > 0 {
 //!     sumo.step()?;
 //!     controller.step(&mut sumo)?;
@@ -57,7 +57,7 @@
 
 use crate::config::Config;
 use crate::engine::outcome::EgoStats;
-use crate::policy::network::PolicyNet;
+use crate::policy::ensemble::PolicyEnsemble;
 use crate::policy::observation::{BatchPolicy, Frame, Layout, observe_as};
 use crate::render::timespace::{Road, Sample, TimeSpace};
 use crate::sumo::geometry::{MergeGeometry, PlayerControl};
@@ -195,7 +195,7 @@ pub struct Controller {
     geometry: MergeGeometry,
     positions: LanePositions,
     kind: ControllerKind,
-    policy: Option<PolicyNet>,
+    policy: Option<PolicyEnsemble>,
     modes: ControlModes,
     types: HashMap<String, String>,
     /// The ramp or target lane each vehicle was last seen on (for junction internal lanes).
@@ -246,7 +246,7 @@ impl Controller {
         geometry: MergeGeometry,
         positions: LanePositions,
         kind: ControllerKind,
-        policy: Option<PolicyNet>,
+        policy: Option<PolicyEnsemble>,
         modes: ControlModes,
     ) -> Self {
         let config = config.at_conflict_point(geometry.conflict_point);
@@ -781,6 +781,7 @@ impl Game {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::policy::network::PolicyNet;
     use crate::world::merge_gate::{GateRules, entry_is_safe};
 
     fn car(id: &str, x: f64, v: f64, on_ramp: bool) -> Car {
@@ -894,7 +895,7 @@ mod tests {
             },
             LanePositions::default(),
             ControllerKind::Mpg,
-            Some(full_throttle(&c.config)),
+            Some(full_throttle(&c.config).into()),
             ControlModes::SAFE,
         );
         let cars = [car("ego", 293.0, 10.0, true), car("lane.1", 288.0, 12.0, false)];

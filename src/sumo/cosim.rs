@@ -12,7 +12,7 @@
 
 use crate::config::Config;
 use crate::eval::metrics::{EpisodeMetrics, Summary};
-use crate::policy::network::PolicyNet;
+use crate::policy::ensemble::PolicyEnsemble;
 use crate::render::timespace::TimeSpace;
 use crate::sumo::controller::{CollisionEvent, ControlModes, Controller, EgoRecord};
 use crate::sumo::geometry::MergeGeometry;
@@ -134,6 +134,9 @@ pub struct EgoResult {
 pub struct ControllerRun {
     /// Controller.
     pub controller: ControllerKind,
+    /// Training seeds of the policy that drove (several: the mean of their actions; none for
+    /// `sumo`).
+    pub policy_seeds: Vec<u64>,
     /// SUMO seed.
     pub seed: u64,
     /// SUMO's version ("SUMO 1.15.0").
@@ -259,7 +262,7 @@ pub fn run_controller(
     config: &Config,
     settings: &CosimSettings,
     kind: ControllerKind,
-    policy: Option<PolicyNet>,
+    policy: Option<PolicyEnsemble>,
 ) -> Result<ControllerRun, CosimError> {
     let tripinfo = settings.out.join(format!("tripinfo-{}.xml", kind.name()));
     let ssm = settings.out.join(format!("ssm-{}.xml", kind.name()));
@@ -427,6 +430,7 @@ fn summarise(
     };
     ControllerRun {
         controller,
+        policy_seeds: Vec::new(),
         seed,
         sumo_version: String::new(),
         desired_speed: None,
@@ -553,6 +557,7 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
         s += "\n";
     };
     let m = |r: &ControllerRun| r.summary;
+    row("Policy (training seeds)", &|r| policy_cell(&r.policy_seeds));
     row("Egos (finished / unfinished)", &|r| {
         format!("{} / {}", r.summary.episodes, r.unfinished)
     });
@@ -600,6 +605,16 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
         r.speed_overrides.to_string()
     });
     s
+}
+
+/// Which trained policy drove: one seed, the mean of several, or none (`sumo`).
+fn policy_cell(seeds: &[u64]) -> String {
+    let list = || seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", ");
+    match seeds.len() {
+        0 => "-".into(),
+        1 => format!("seed {}", seeds[0]),
+        _ => format!("mean of seeds {}", list()),
+    }
 }
 
 /// Per-ego CSV over all runs.
