@@ -550,15 +550,13 @@ impl Controller {
             if tracked.is_none() && !self.pick_up(sumo, cars, k, time)? {
                 continue;
             }
-            let g = &self.geometry;
+            let (merged, release) = self.merge_progress(c);
             let ego = self.egos.get_mut(&c.id).expect("tracked");
-            if !c.on_ramp {
-                ego.merged = true;
-                if c.x >= self.rules.conflict_point() + g.release_after {
-                    ego.end = Some(time);
-                    self.players.remove(&c.id);
-                    continue;
-                }
+            ego.merged |= merged;
+            if release {
+                ego.end = Some(time);
+                self.players.remove(&c.id);
+                continue;
             }
             if self.traffic {
                 // Merge traffic: every vehicle around the ego is in its game, now (in the
@@ -578,6 +576,16 @@ impl Controller {
         }
         games.sort_by(|a, b| cars[b.ego_car()].x.total_cmp(&cars[a.ego_car()].x));
         Ok(games)
+    }
+
+    /// Whether an ego has merged (SUMO has it on a target lane) and whether it is released
+    /// (merged and `release_after` past the conflict point). A ramp vehicle past the conflict
+    /// point whose lane change SUMO has not made yet is neither: the internal simulator's rule
+    /// counts it in the target lane for the scene, but until it is there the policy keeps it.
+    fn merge_progress(&self, c: &Car) -> (bool, bool) {
+        let merged = c.ramp_lane.is_none();
+        let release = merged && c.x >= self.rules.conflict_point() + self.geometry.release_after;
+        (merged, release)
     }
 
     /// Starts tracking ramp vehicle `k` if it is controllable and in the control zone, with
@@ -843,6 +851,26 @@ mod tests {
             None,
             ControlModes::SAFE,
         )
+    }
+
+    #[test]
+    fn an_ego_is_released_only_once_it_is_on_the_target_lane() {
+        let mut c = paper_controller();
+        c.geometry.release_after = 0.0;
+        // Past x_c still on the acceleration lane, its lane change not asked for yet: the
+        // scene counts it in the target lane (on_ramp false), SUMO does not.
+        let mut waiting = car("ramp.1", 185.0, 10.0, false);
+        waiting.ramp_lane = Some("merge_0".into());
+        assert_eq!(c.merge_progress(&waiting), (false, false));
+        assert_eq!(c.merge_progress(&car("ramp.1", 185.0, 10.0, false)), (true, true));
+        assert_eq!(
+            c.merge_progress(&car("ramp.1", 175.0, 10.0, false)),
+            (true, false)
+        );
+        assert_eq!(
+            c.merge_progress(&car("ramp.1", 175.0, 10.0, true)),
+            (false, false)
+        );
     }
 
     #[test]
