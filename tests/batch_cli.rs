@@ -127,6 +127,40 @@ fn a_small_batch_runs_every_combination_and_summarises_them() {
 }
 
 #[test]
+fn one_policy_seed_drives_every_run_when_asked() {
+    let routes = route_files("seed-routes");
+    let (mean, one) = (fresh("seed-mean"), fresh("seed-one"));
+    for (out, extra) in [(&mean, &[][..]), (&one, &["--policy-seed", "3"][..])] {
+        let o = run(batch_of(&routes, out, "sarl", extra));
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let result = |dir: &Path| -> serde_json::Value {
+        let text = std::fs::read_to_string(dir.join("runs/merge_d1.00_s0__sarl__s0.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    };
+    let (m, o) = (result(&mean), result(&one));
+    let command = |r: &serde_json::Value| {
+        r["command"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|a| a.as_str().unwrap().to_owned())
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    assert!(command(&o).contains("--policy-seed 3"), "{}", command(&o));
+    assert!(!command(&m).contains("--policy-seed"), "{}", command(&m));
+    // The same egos, driven by seed 3 alone or by the mean of the five seeds.
+    assert_eq!(m["metrics"]["egos"], o["metrics"]["egos"]);
+    assert_ne!(m["metrics"]["mean_speed"], o["metrics"]["mean_speed"], "{m} {o}");
+    // A seed the directory does not hold is refused before any run.
+    let bad = fresh("seed-bad");
+    let o = run(batch_of(&routes, &bad, "sarl", &["--policy-seed", "9"]));
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no policy of seed 9"));
+}
+
+#[test]
 fn a_killed_batch_resumes_to_the_summary_of_an_uninterrupted_one() {
     let routes = route_files("resume-routes");
     let whole = fresh("whole");
