@@ -1,16 +1,12 @@
 //! What several commands share: the common arguments, printing to stdout, usage errors and
 //! picking the policies of a directory.
 
-#[cfg(feature = "sumo")]
-use anyhow::Context as _;
-use anyhow::Result;
+use anyhow::{Context as _, Result};
 use clap::Args;
 use mpgdrive::config::{Config, ScenarioKind};
 use mpgdrive::eval::study::{Rules, load_policies};
-#[cfg(feature = "sumo")]
-use mpgdrive::policy::PolicyEnsemble;
 use mpgdrive::policy::file::Sidecar;
-use mpgdrive::policy::{Mode, PolicyNet};
+use mpgdrive::policy::{Mode, PolicyEnsemble, PolicyNet};
 use std::path::{Path, PathBuf};
 
 /// Configuration, seed and threads of the commands over the internal simulator.
@@ -140,24 +136,19 @@ pub fn pick_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<Po
     Ok(select_policies(path, seed, config)?.swap_remove(0).0)
 }
 
-/// The policy a deployment drives with, and the training seeds it comes from.
-#[cfg(feature = "sumo")]
-pub struct Deployed {
-    /// One network, or several acting as one (the mean of their actions).
-    pub policy: PolicyEnsemble,
-    /// Their training seeds.
-    pub seeds: Vec<u64>,
-}
-
-/// `seed`'s network of a file or directory, or else every seed as one ensemble.
-#[cfg(feature = "sumo")]
-pub fn deployed_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<Deployed> {
+/// The policy a deployment drives with, and its training seeds: `seed`'s network of a file or
+/// directory, or else every seed as one ensemble (the mean of their actions).
+pub fn deployed_policy(
+    path: &Path,
+    seed: Option<u64>,
+    config: &Config,
+) -> Result<(PolicyEnsemble, Vec<u64>)> {
     let (nets, seeds): (Vec<_>, Vec<_>) = select_policies(path, seed, config)?
         .into_iter()
         .map(|(net, side)| (net, side.seed))
         .unzip();
     let policy = PolicyEnsemble::new(nets).with_context(|| format!("{}", path.display()))?;
-    Ok(Deployed { policy, seeds })
+    Ok((policy, seeds))
 }
 
 /// `--threads`: at least 1; all cores when not given.

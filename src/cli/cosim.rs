@@ -93,10 +93,11 @@ pub use with_sumo::run;
 #[cfg(feature = "sumo")]
 mod with_sumo {
     use super::CosimArgs;
-    use crate::cli::common::{Deployed, deployed_policy, print, usage};
+    use crate::cli::common::{deployed_policy, print, usage};
     use anyhow::{Context, Result};
     use mpgdrive::atomic;
     use mpgdrive::config::Config;
+    use mpgdrive::policy::PolicyEnsemble;
     use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
     use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, Shields, run_controller};
     use mpgdrive::sumo::{ControlModes, ControllerKind, MergeGeometry};
@@ -203,6 +204,9 @@ mod with_sumo {
         Ok((config, settings))
     }
 
+    /// A policy to deploy and its training seeds.
+    type Deployed = (PolicyEnsemble, Vec<u64>);
+
     /// Every controller in turn; on a failure, the results so far are written before the error.
     fn run_all(
         config: &Config,
@@ -212,7 +216,7 @@ mod with_sumo {
     ) -> Result<Vec<ControllerRun>> {
         let mut runs = Vec::new();
         for (kind, policy) in controllers {
-            let (policy, seeds) = policy.map(|d| (d.policy, d.seeds)).unzip();
+            let (policy, seeds) = policy.unzip();
             match run_controller(config, settings, kind, policy) {
                 Ok(mut run) => {
                     run.policy_seeds = seeds.unwrap_or_default();
