@@ -46,7 +46,10 @@
 //! (other ramp vehicles queued ahead, vehicles cutting in from the next lane); the run counts
 //! the steps where SUMO did not apply a commanded speed. An ego whose centre reaches the
 //! conflict point is treated as merged, as in the internal simulator, and told to change to
-//! the target lane next to it; with `merge.toml`'s `merge_from` it is told so earlier, at the
+//! the target lane next to it: from there on every scene counts it in the target lane, where
+//! the policy was trained to see it, whether SUMO has moved it yet or not (a target-lane
+//! vehicle beside it, less than a car length behind, does not take it as its leader: it could
+//! only stop beside a vehicle that cannot change lanes in front of it until it has passed); with `merge.toml`'s `merge_from` it is told so earlier, at the
 //! first step from there on where the lane change is safe (as the traffic world's
 //! `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
 //! ([`ControlModes::player_lane_change`]). Positions are along the lanes
@@ -212,8 +215,6 @@ pub struct Controller {
     commanded: HashMap<String, f64>,
     /// Acceleration applied last step per driven vehicle: model speed = SUMO speed + a dt.
     applied: HashMap<String, f64>,
-    /// Vehicles asked last step to change to the target lane.
-    lane_change_requested: HashSet<String>,
     /// The policy reads the traffic layout: an ego's game is every vehicle around it, formed
     /// anew each step (no fixed players, no agent index).
     traffic: bool,
@@ -277,7 +278,6 @@ impl Controller {
             overridden: 0,
             commanded: HashMap::new(),
             applied: HashMap::new(),
-            lane_change_requested: HashSet::new(),
             traffic,
             v_desired,
             timing: ControllerTiming::default(),
@@ -333,7 +333,6 @@ impl Controller {
             self.controlled.remove(id);
             self.commanded.remove(id);
             self.applied.remove(id);
-            self.lane_change_requested.remove(id);
             if let Some(ego) = self.egos.get_mut(id).filter(|e| !e.finished()) {
                 ego.lost = !ego.merged || teleporting.contains(id);
                 ego.end = Some(time);
@@ -344,7 +343,6 @@ impl Controller {
         let commands = self.decide(&cars, &games);
         let mut driven = HashSet::new();
         let mut applied = HashMap::new();
-        let mut requested = HashSet::new();
         for (car, accel) in commands {
             let c = &cars[car];
             if self.controlled.insert(c.id.clone()) {
@@ -369,13 +367,11 @@ impl Controller {
             if let Some(lane) = c.ramp_lane.as_ref().filter(|_| self.merges_now(&cars, car)) {
                 if let Some((_, index)) = self.geometry.merge_lane(lane) {
                     sumo.change_lane(&c.id, index, 1.0)?;
-                    requested.insert(c.id.clone());
                 }
             }
             driven.insert(c.id.clone());
         }
         self.applied = applied;
-        self.lane_change_requested = requested;
         if self.timespace.is_some() {
             let marked: HashSet<&str> = if self.kind == ControllerKind::Sumo {
                 games.iter().map(|g| cars[g.ego_car()].id.as_str()).collect()
@@ -524,7 +520,7 @@ impl Controller {
             };
             self.lane_class.insert(id.clone(), lane.clone());
             cars.push(Car {
-                on_ramp: ramp && (x < x_c || self.lane_change_requested.contains(&id)),
+                on_ramp: ramp && x < x_c,
                 ramp_lane: ramp.then_some(lane),
                 id,
                 x,
@@ -674,6 +670,7 @@ impl Controller {
                 scene.v_desired = self.v_desired;
                 let mut nb = Vec::new();
                 find_neighbors(&scene, &mut self.order, &mut nb);
+                pass_beside_waiting(cars, game, &scene, &mut nb, self.rules.length);
                 scenes.push(scene);
                 neighbors.push(nb);
             }
@@ -758,6 +755,25 @@ impl Controller {
     /// The egos seen, in id order.
     pub fn finish(self) -> Vec<EgoRecord> {
         self.egos.into_values().collect()
+    }
+}
+
+/// Lets a target-lane vehicle pass a ramp vehicle waiting beside it: a ramp vehicle past the
+/// conflict point that SUMO has not moved to the target lane yet is in the target lane of the
+/// scene (`on_ramp` false), but a target-lane vehicle less than `length` behind it is beside
+/// it, not behind it, so its lane leader is the next one ahead. Taking the waiting vehicle as
+/// its leader it could only stop (its gap is negative), beside a vehicle that cannot change
+/// lanes until it has passed: measured on `i80_merge`, the game stood still.
+fn pass_beside_waiting(cars: &[Car], game: &Game, scene: &Scene, nb: &mut [Neighbors], length: f64) {
+    for m in 0..scene.len() {
+        let Some(l) = nb[m].lane_leader else {
+            continue;
+        };
+        let (me, leader) = (&cars[game.members[m].0], &cars[game.members[l].0]);
+        let waiting = leader.ramp_lane.is_some() && !leader.on_ramp;
+        if waiting && me.ramp_lane.is_none() && scene.vehicles[l].x - scene.vehicles[m].x < length {
+            nb[m].lane_leader = nb[l].lane_leader;
+        }
     }
 }
 
@@ -857,8 +873,8 @@ mod tests {
     fn an_ego_is_released_only_once_it_is_on_the_target_lane() {
         let mut c = paper_controller();
         c.geometry.release_after = 0.0;
-        // Past x_c still on the acceleration lane, its lane change not asked for yet: the
-        // scene counts it in the target lane (on_ramp false), SUMO does not.
+        // Past x_c still on the acceleration lane: the scene counts it in the target lane
+        // (on_ramp false), SUMO does not.
         let mut waiting = car("ramp.1", 185.0, 10.0, false);
         waiting.ramp_lane = Some("merge_0".into());
         assert_eq!(c.merge_progress(&waiting), (false, false));
@@ -871,6 +887,41 @@ mod tests {
             c.merge_progress(&car("ramp.1", 175.0, 10.0, true)),
             (false, false)
         );
+    }
+
+    #[test]
+    fn a_car_beside_a_waiting_ramp_vehicle_passes_it() {
+        // Ramp vehicle W past x_c, still on the acceleration lane (in the scene's target lane);
+        // target-lane cars B 3 m behind it (beside it: less than a 5 m car length), F 6 m
+        // behind it, and A ahead.
+        let mut w = car("W", 190.0, 0.0, false);
+        w.ramp_lane = Some("merge_0".into());
+        let cars = [
+            w,
+            car("B", 187.0, 10.0, false),
+            car("F", 184.0, 10.0, false),
+            car("A", 230.0, 10.0, false),
+        ];
+        let game = Game {
+            members: (0..cars.len()).map(|j| (j, 0)).collect(),
+            ego: 0,
+        };
+        let scene = Scene::new(cars.iter().map(|c| c.vehicle(3.66)).collect());
+        let mut nb = Vec::new();
+        find_neighbors(&scene, &mut Vec::new(), &mut nb);
+        assert_eq!(nb[1].lane_leader, Some(0));
+        pass_beside_waiting(&cars, &game, &scene, &mut nb, 5.0);
+        // B passes W (its leader is A); F, behind W by more than a length, follows B; W's own
+        // neighbours stay.
+        assert_eq!(nb[1].lane_leader, Some(3));
+        assert_eq!(nb[2].lane_leader, Some(1));
+        assert_eq!((nb[0].lane_leader, nb[0].lane_follower), (Some(3), Some(1)));
+        // Once W is on the target lane (SUMO moved it), B follows it again.
+        let mut merged = cars.clone();
+        merged[0].ramp_lane = None;
+        find_neighbors(&scene, &mut Vec::new(), &mut nb);
+        pass_beside_waiting(&merged, &game, &scene, &mut nb, 5.0);
+        assert_eq!(nb[1].lane_leader, Some(0));
     }
 
     #[test]
