@@ -47,9 +47,9 @@
 //! the steps where SUMO did not apply a commanded speed. An ego whose centre reaches the
 //! conflict point is treated as merged, as in the internal simulator, and told to change to
 //! the target lane next to it: from there on every scene counts it in the target lane, where
-//! the policy was trained to see it, whether SUMO has moved it yet or not (a target-lane
-//! vehicle beside it, less than a car length behind, does not take it as its leader: it could
-//! only stop beside a vehicle that cannot change lanes in front of it until it has passed); with `merge.toml`'s `merge_from` it is told so earlier, at the
+//! the policy was trained to see it, whether SUMO has moved it yet or not, except that the
+//! target-lane vehicle beside it passes it (`pass_beside_waiting`). With `merge.toml`'s
+//! `merge_from` it is told so earlier, at the
 //! first step from there on where the lane change is safe (as the traffic world's
 //! `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
 //! ([`ControlModes::player_lane_change`]). Positions are along the lanes
