@@ -48,7 +48,8 @@
 //! conflict point is treated as merged, as in the internal simulator, and told to change to
 //! the target lane next to it: from there on every scene counts it in the target lane, where
 //! the policy was trained to see it, whether SUMO has moved it yet or not, except that the
-//! target-lane vehicle beside it passes it (`pass_beside_waiting`). With `merge.toml`'s
+//! target-lane vehicle beside it passes it (`pass_beside_waiting`), and it keeps
+//! [`WAITING_MARGIN`] more to its neighbours so that SUMO finds the gap it needs. With `merge.toml`'s
 //! `merge_from` it is told so earlier, at the
 //! first step from there on where the lane change is safe (as the traffic world's
 //! `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
