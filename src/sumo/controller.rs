@@ -49,9 +49,9 @@
 //! the target lane next to it: from there on every scene counts it in the target lane, where
 //! the policy was trained to see it, whether SUMO has moved it yet or not, except that the
 //! target-lane vehicle beside it passes it (`pass_beside_waiting`), and it keeps
-//! [`WAITING_MARGIN`] more to its neighbours so that SUMO finds the gap it needs. With `merge.toml`'s
-//! `merge_from` it is told so earlier, at the
-//! first step from there on where the lane change is safe (as the traffic world's
+//! [`WAITING_MARGIN`] more to its neighbours so that SUMO finds the gap it needs. With
+//! `merge.toml`'s `merge_from` it is told so earlier, at the first step from there on where
+//! the lane change is safe (as the traffic world's
 //! `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
 //! ([`ControlModes::player_lane_change`]). Positions are along the lanes
 //! ([`LanePositions`]). Control ends when the ego is
