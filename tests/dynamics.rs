@@ -1,7 +1,9 @@
 //! Eq. (1) and the action clipping, against hand-computed kinematics.
 
 use approx::assert_abs_diff_eq;
-use mpgdrive::world::dynamics::{Axles, Kinematics, bicycle_step};
+use mpgdrive::engine::tape::{self, Var};
+use mpgdrive::num::Num;
+use mpgdrive::world::dynamics::{Axles, Kinematics, bicycle_step, straight_step};
 use mpgdrive::world::safety::clip_action;
 
 const AXLES: Axles = Axles { l_f: 1.2, l_r: 1.6 };
@@ -66,4 +68,72 @@ fn speed_is_clipped_at_zero_and_thirty() {
     // Actions beyond g are clipped to g.
     assert_abs_diff_eq!(clip_action(&50.0, &10.0, 9.81, 0.0, 30.0, 0.1), 9.81);
     assert_abs_diff_eq!(clip_action(&-50.0, &10.0, 9.81, 0.0, 30.0, 0.1), -9.81);
+}
+
+#[test]
+fn a_straight_step_is_eq_1_without_steering_bit_for_bit() {
+    // phi = 0 and delta = 0: beta = atan(0) = 0, cos 0 = 1 and sin 0 = 0, so eq. (1) gives
+    // x' = x + v dt and v' = v + u dt to the bit, and y and phi stay (up to a zero's sign).
+    let cases = [
+        (0.0, 0.0, 0.0),
+        (12.3, 17.9, -4.2),
+        (179.99, 0.3, 9.81),
+        (-55.5, 29.7, -9.81),
+        (1e-3, 1e-9, 7e-8),
+    ];
+    for (x, v, u) in cases {
+        let s = Kinematics {
+            x,
+            y: -3.66,
+            v,
+            phi: 0.0,
+        };
+        let (a, b) = (bicycle_step(&s, &u, &0.0, AXLES, 0.1), straight_step(&s, &u, 0.1));
+        assert_eq!(
+            (a.x.to_bits(), a.v.to_bits()),
+            (b.x.to_bits(), b.v.to_bits()),
+            "{x} {v} {u}"
+        );
+        assert_eq!((a.y, a.phi), (b.y, b.phi));
+        assert_eq!(b.x, x + v * 0.1);
+    }
+    // On the training tape: the same values and the same gradients of x, v and u, through two
+    // steps (the second step's heading is the first's output).
+    let (xs, vs, us): (Vec<f64>, Vec<f64>, Vec<f64>) = (
+        cases.iter().map(|c| c.0).collect(),
+        cases.iter().map(|c| c.1).collect(),
+        cases.iter().map(|c| c.2).collect(),
+    );
+    let run = |straight: bool| {
+        tape::start();
+        let (x, v, u) = (
+            Var::leaf(xs.clone(), 5, 1),
+            Var::leaf(vs.clone(), 5, 1),
+            Var::leaf(us.clone(), 5, 1),
+        );
+        let mut s = Kinematics {
+            x: x.clone(),
+            y: x.full(-3.66),
+            v: v.clone(),
+            phi: x.full(0.0),
+        };
+        for _ in 0..2 {
+            s = if straight {
+                straight_step(&s, &u, 0.1)
+            } else {
+                bicycle_step(&s, &u, &u.full(0.0), AXLES, 0.1)
+            };
+        }
+        let out = s.x.mul(&s.v);
+        let g = tape::backward(&out, vec![1.0; 5]);
+        let bits = |t: &[f64]| t.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        [
+            out.values(),
+            g.of(&x).unwrap(),
+            g.of(&v).unwrap(),
+            g.of(&u).unwrap(),
+        ]
+        .map(bits)
+    };
+    assert_eq!(run(true), run(false));
 }

@@ -12,7 +12,7 @@ use crate::engine::tape::Var;
 use crate::game::reward::{speed_weight, tail_weight};
 use crate::game::terms;
 use crate::num::Num;
-use crate::world::dynamics::{Kinematics, bicycle_step};
+use crate::world::dynamics::{Kinematics, bicycle_step, straight_step};
 use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::merge_gate::{gate_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
@@ -357,7 +357,11 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Var) -> TensorBatch 
         v: batch.v.clone(),
         phi: batch.phi.clone(),
     };
-    let next = bicycle_step(&k, u, &u.full(0.0), rules.axles, rules.dt);
+    let next = if batch.phi.values().iter().all(|&phi| phi == 0.0) {
+        straight_step(&k, u, rules.dt)
+    } else {
+        bicycle_step(&k, u, &u.full(0.0), rules.axles, rules.dt)
+    };
     let conflict = rules.conflict_point();
     let scenes = batch.scenes();
     let on_ramp: Vec<f64> = batch

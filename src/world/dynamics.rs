@@ -46,3 +46,17 @@ pub fn bicycle_step<T: Num>(s: &Kinematics<T>, u: &T, delta: &T, axles: Axles, d
         phi: s.phi.add(&s.v.mul(&beta.sin()).mul_c(dt / axles.l_r)),
     }
 }
+
+/// Eq. (1) with zero steering on a straight heading (`delta = 0`, `phi = 0`, so `beta = 0`):
+/// `x' = x + v dt`, `v' = v + u dt`, while `y` and `phi` stay. These are [`bicycle_step`]'s
+/// values bit for bit (`cos 0 = 1`, `sin 0 = 0`; its `y'` and `phi'` differ at most in the sign
+/// of a zero) without its four trigonometric functions: no vehicle of a rollout steers, and
+/// every rollout starts straight.
+pub fn straight_step<T: Num + Clone>(s: &Kinematics<T>, u: &T, dt: f64) -> Kinematics<T> {
+    Kinematics {
+        x: s.x.add(&s.v.mul_c(dt)),
+        y: s.y.clone(),
+        v: s.v.add(&u.mul_c(dt)),
+        phi: s.phi.clone(),
+    }
+}

@@ -2,7 +2,7 @@
 //! gate, limits), eq. (1) with zero steering, and collisions between bounding boxes. One set of
 //! rules for the scalar rollout, the NGSIM replay and the SUMO co-simulation.
 
-use crate::world::dynamics::{Kinematics, bicycle_step};
+use crate::world::dynamics::{Kinematics, bicycle_step, straight_step};
 use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::merge_gate::{gate_holds, stop_bound};
 use crate::world::neighbors::Neighbors;
@@ -31,18 +31,17 @@ pub fn neighbor_of(scene: &Scene, who: Option<usize>, me: &Vehicle) -> Neighbor<
 /// joins the target lane (its lateral position follows the lane geometry). One step for the
 /// rollout and the NGSIM replay.
 pub fn advance(v: &Vehicle, u: f64, merges: bool, rules: &WorldRules) -> Vehicle {
-    let k = bicycle_step(
-        &Kinematics {
-            x: v.x,
-            y: v.y,
-            v: v.v,
-            phi: v.phi,
-        },
-        &u,
-        &0.0,
-        rules.axles,
-        rules.dt,
-    );
+    let state = Kinematics {
+        x: v.x,
+        y: v.y,
+        v: v.v,
+        phi: v.phi,
+    };
+    let k = if v.phi == 0.0 {
+        straight_step(&state, &u, rules.dt)
+    } else {
+        bicycle_step(&state, &u, &0.0, rules.axles, rules.dt)
+    };
     let on_ramp = !merges && rules.road.still_on_ramp(v.on_ramp, k.x);
     Vehicle {
         x: k.x,
