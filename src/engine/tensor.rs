@@ -339,11 +339,16 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     let reward = own.add(&pair.pair_sums(&pairs.both, pairs.n));
     // Humans are no players: the potential holds the players' own terms and every pair with
     // at least one player (Theorem 3 over the players; a human's terms are not in any
-    // player's reward).
-    let player = batch.human.neg().add_c(1.0);
-    let with_a_player = pairs.of_ends(&batch.human, |a, b| 1.0 - a * b);
-    let pairs_with_a_player = pair.mul(&Var::constant(with_a_player, pair.rows(), np));
-    let potential = own.mul(&player).sum_cols().add(&pairs_with_a_player.sum_cols());
+    // player's reward). Without humans the masks are all ones and are left out (the same
+    // values).
+    let potential = if batch.humans.iter().flatten().any(|&h| h) {
+        let player = batch.human.neg().add_c(1.0);
+        let with_a_player = pairs.of_ends(&batch.human, |a, b| 1.0 - a * b);
+        let pairs_with_a_player = pair.mul(&Var::constant(with_a_player, pair.rows(), np));
+        own.mul(&player).sum_cols().add(&pairs_with_a_player.sum_cols())
+    } else {
+        own.sum_cols().add(&pair.sum_cols())
+    };
     (reward, potential)
 }
 
@@ -435,17 +440,20 @@ pub fn rollout(
     let rules = WorldRules::new(config);
     let any_human = scenes.iter().any(|s| s.humans.contains(&true));
     // With `sim.project_non_learning` off, the feasibility rules apply to the learning players
-    // alone: not to humans, and to the ego alone when only the ego learns.
-    let only = (!config.sim.project_non_learning).then(|| {
-        let learner = batch.human.neg().add_c(1.0);
-        match learning {
-            Learning::All => learner,
-            Learning::Ego => {
-                let ego = (0..b * n).map(|k| f64::from(u8::from(k % n == 0))).collect();
-                learner.mul(&Var::constant(ego, b, n))
+    // alone: not to humans, and to the ego alone when only the ego learns. A mask that holds
+    // every player changes nothing and is left out (the same values, one operation less).
+    let only = (!config.sim.project_non_learning)
+        .then(|| {
+            let learner = batch.human.neg().add_c(1.0);
+            match learning {
+                Learning::All => learner,
+                Learning::Ego => {
+                    let ego = (0..b * n).map(|k| f64::from(u8::from(k % n == 0))).collect();
+                    learner.mul(&Var::constant(ego, b, n))
+                }
             }
-        }
-    });
+        })
+        .filter(|mask| mask.values().iter().any(|&m| m < 0.5));
     for step in 0..steps {
         let nb = NeighborIndex::of(&batch);
         let mut raw = act(&batch, &nb, step);
