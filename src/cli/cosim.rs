@@ -107,8 +107,6 @@ mod with_sumo {
     /// Runs `mpgdrive cosim`.
     pub fn run(args: CosimArgs) -> Result<ExitCode> {
         let (mut config, settings) = settings(&args)?;
-        // The policy runs on small batches every step: one libtorch thread avoids pool overhead.
-        tch::set_num_threads(1);
         // Every policy is loaded (and checked against the configuration) before the first run.
         let mut controllers = Vec::new();
         for &kind in &args.controllers {

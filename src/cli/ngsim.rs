@@ -142,8 +142,6 @@ fn prepare_cmd(args: PrepareArgs) -> Result<()> {
 
 fn eval(args: EvalArgs) -> Result<()> {
     let config = Config::load(&args.config)?;
-    // One observation per step: one libtorch thread avoids pool overhead.
-    tch::set_num_threads(1);
     let [mut mpg, mut sarl] = args.policies.load(&config)?;
     let (ngsim, prepared) = load_prepared(&args.input)?;
     let s = &config.scenario;
