@@ -71,7 +71,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     // Every command runs the policy networks on small batches, from worker threads of its own
     // where it has several (rollout chunks, training shards): one libtorch thread each. With
     // libtorch's default pool inside each worker, `eval` spent a tenth of its time in OpenMP's
-    // spin-waits (measured: 3.85 s against 3.33 s, the same tables).
+    // spin-waits (measured: 4.0 s against 3.4 s, the same tables).
     tch::set_num_threads(1);
     match cli.command {
         Command::Cosim(args) => cosim::run(args),
