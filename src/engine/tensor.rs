@@ -12,7 +12,7 @@ use crate::engine::tape::Var;
 use crate::game::reward::{speed_weight, tail_weight};
 use crate::game::terms;
 use crate::num::Num;
-use crate::world::dynamics::{Kinematics, bicycle_step, straight_step};
+use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::merge_gate::{gate_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
@@ -96,6 +96,11 @@ impl TensorBatch {
         };
         batch.detached = batch.copy_scenes();
         batch
+    }
+
+    /// Whether a human drives any vehicle of the batch.
+    pub fn any_human(&self) -> bool {
+        self.humans.iter().flatten().any(|&h| h)
     }
 
     /// The detached states as scenes.
@@ -254,7 +259,7 @@ pub fn apply_limits(
             rules.tau_s,
         );
         let lane = project_feasible(raw, &lo, &hi);
-        if rules.merge_gate || batch.humans.iter().flatten().any(|&h| h) {
+        if rules.merge_gate || batch.any_human() {
             merge_gate(rules, batch, &lane)
         } else {
             lane
@@ -341,7 +346,7 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     // at least one player (Theorem 3 over the players; a human's terms are not in any
     // player's reward). Without humans the masks are all ones and are left out (the same
     // values).
-    let potential = if batch.humans.iter().flatten().any(|&h| h) {
+    let potential = if batch.any_human() {
         let player = batch.human.neg().add_c(1.0);
         let with_a_player = pairs.of_ends(&batch.human, |a, b| 1.0 - a * b);
         let pairs_with_a_player = pair.mul(&Var::constant(with_a_player, pair.rows(), np));
@@ -362,11 +367,8 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Var) -> TensorBatch 
         v: batch.v.clone(),
         phi: batch.phi.clone(),
     };
-    let next = if batch.phi.values().iter().all(|&phi| phi == 0.0) {
-        straight_step(&k, u, rules.dt)
-    } else {
-        bicycle_step(&k, u, &u.full(0.0), rules.axles, rules.dt)
-    };
+    let straight = batch.phi.values().iter().all(|&phi| phi == 0.0);
+    let next = zero_steering_step(&k, u, straight, rules.axles, rules.dt);
     let conflict = rules.conflict_point();
     let scenes = batch.scenes();
     let on_ramp: Vec<f64> = batch
@@ -438,7 +440,7 @@ pub fn rollout(
     let mut discount = 1.0;
     let pairs = Pairs::new(n);
     let rules = WorldRules::new(config);
-    let any_human = scenes.iter().any(|s| s.humans.contains(&true));
+    let any_human = batch.any_human();
     // With `sim.project_non_learning` off, the feasibility rules apply to the learning players
     // alone: not to humans, and to the ego alone when only the ego learns. A mask that holds
     // every player changes nothing and is left out (the same values, one operation less).

@@ -60,3 +60,19 @@ pub fn straight_step<T: Num + Clone>(s: &Kinematics<T>, u: &T, dt: f64) -> Kinem
         phi: s.phi.clone(),
     }
 }
+
+/// One step of eq. (1) with zero steering: [`straight_step`] when `straight` (every heading
+/// is 0), else [`bicycle_step`]; the same values either way.
+pub fn zero_steering_step<T: Num + Clone>(
+    s: &Kinematics<T>,
+    u: &T,
+    straight: bool,
+    axles: Axles,
+    dt: f64,
+) -> Kinematics<T> {
+    if straight {
+        straight_step(s, u, dt)
+    } else {
+        bicycle_step(s, u, &u.full(0.0), axles, dt)
+    }
+}

@@ -2,7 +2,7 @@
 //! gate, limits), eq. (1) with zero steering, and collisions between bounding boxes. One set of
 //! rules for the scalar rollout, the NGSIM replay and the SUMO co-simulation.
 
-use crate::world::dynamics::{Kinematics, bicycle_step, straight_step};
+use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::merge_gate::{gate_holds, stop_bound};
 use crate::world::neighbors::Neighbors;
@@ -37,11 +37,7 @@ pub fn advance(v: &Vehicle, u: f64, merges: bool, rules: &WorldRules) -> Vehicle
         v: v.v,
         phi: v.phi,
     };
-    let k = if v.phi == 0.0 {
-        straight_step(&state, &u, rules.dt)
-    } else {
-        bicycle_step(&state, &u, &0.0, rules.axles, rules.dt)
-    };
+    let k = zero_steering_step(&state, &u, v.phi == 0.0, rules.axles, rules.dt);
     let on_ramp = !merges && rules.road.still_on_ramp(v.on_ramp, k.x);
     Vehicle {
         x: k.x,
