@@ -352,7 +352,7 @@ fn shard_gradient(
         .map(|k| if k % cols == 0 { weight } else { 0.0 })
         .collect();
     tape::backward(&root, seed);
-    (sums, grads.take())
+    (sums, grads.take().map(|s| net.grad_tensors(&s)))
 }
 
 /// Rolls every member out on its probe states (`probe`: each member's scenes in turn, as
