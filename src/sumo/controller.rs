@@ -51,8 +51,9 @@
 //! target-lane vehicle beside it passes it (`pass_beside_waiting`), and it keeps
 //! [`WAITING_MARGIN`] more to its neighbours so that SUMO finds the gap it needs. With
 //! `merge.toml`'s `merge_from` it is told so earlier, at the first step from there on where
-//! the lane change is safe (as the traffic world's
-//! `scenario.merge_zone`). Target-lane players keep SUMO's own lane changes
+//! the lane change is safe (as the traffic world's `scenario.merge_zone`), and with a traffic
+//! policy the scenes count it in the target lane from `merge_from` on: the vehicles behind
+//! it make room for it, as SUMO's drivers do for a vehicle that signals a merge. Target-lane players keep SUMO's own lane changes
 //! ([`ControlModes::player_lane_change`]). Positions are along the lanes
 //! ([`LanePositions`]). Control ends when the ego is
 //! `release_after` metres past the conflict point on the target lane; SUMO then drives it
@@ -68,7 +69,7 @@ use crate::sumo::geometry::{MergeGeometry, PlayerControl};
 use crate::sumo::kind::ControllerKind;
 use crate::sumo::positions::LanePositions;
 use crate::sumo::{Sumo, SumoError};
-use crate::world::merge_gate::lane_change_is_safe;
+use crate::world::merge_gate::{gate_holds, lane_change_is_safe, stop_bound};
 use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
 use crate::world::state::{Scene, Vehicle};
@@ -121,16 +122,16 @@ struct Car {
     x: f64,
     v: f64,
     accel: f64,
-    /// On the ramp by the internal simulator's rule (on a ramp lane and before the conflict
-    /// point), or still on a ramp lane because SUMO held back the lane change asked for last
-    /// step (lane-change mode 256: it would have collided).
+    /// On the ramp in the scenes: on a ramp lane and before where the scenes take ramp
+    /// vehicles into the target lane (`Controller::scene_entry`: the conflict point, as the
+    /// internal simulator, or `merge_from` with a traffic policy).
     on_ramp: bool,
     /// Ramp lane id while on a ramp lane.
     ramp_lane: Option<String>,
 }
 
 impl Car {
-    /// A ramp vehicle past the conflict point that SUMO has not moved to the target lane yet:
+    /// A ramp vehicle past its scene entry that SUMO has not moved to the target lane yet:
     /// the scene has it in the target lane (`on_ramp` false), SUMO on the ramp.
     fn is_waiting(&self) -> bool {
         self.ramp_lane.is_some() && !self.on_ramp
@@ -243,7 +244,7 @@ pub const EGO_COLOUR: [u8; 3] = [220, 20, 20];
 /// See [`EGO_COLOUR`].
 pub const PLAYER_COLOUR: [u8; 3] = [255, 150, 0];
 
-/// Extra gap (m) a ramp vehicle waiting past the conflict point keeps to the target-lane
+/// Extra gap (m) a ramp vehicle waiting past its scene entry keeps to the target-lane
 /// vehicles of its scene. The feasibility projection brings a vehicle that starts inside its
 /// clearance (length plus `sim.safety_gap`) back towards it only asymptotically (the gap's
 /// shortfall shrinks by `dt / tau_s` per step), while SUMO makes the lane change only once the
@@ -413,6 +414,22 @@ impl Controller {
         Ok(())
     }
 
+    /// Where a ramp vehicle enters the target lane of the scenes: with a traffic policy at
+    /// `merge_from` (where it asks SUMO for the lane change at the first safe gap), otherwise
+    /// at the conflict point, as the internal simulator moves it. Counted in the target lane
+    /// from there on, it is a leader the target-lane vehicles behind it keep their distance
+    /// to, as SUMO's drivers make room for a vehicle that signals a merge; without that, a
+    /// target-lane player level with it kept its speed, neither gave way, and the ego drove
+    /// beside it to the end of the acceleration lane (measured on `i80_merge`, the game,
+    /// demand 1.0: 21% of the egos in an SSM conflict, 4% with the rule).
+    fn scene_entry(&self) -> f64 {
+        let x_c = self.rules.conflict_point();
+        match self.geometry.merge_from {
+            Some(from) if self.traffic => from.min(x_c),
+            _ => x_c,
+        }
+    }
+
     /// Whether ramp vehicle `car`, driven by the policy, changes to the target lane now: at
     /// the conflict point, or from `merge_from` on where the lane change is safe (the traffic
     /// world's merge-zone rule, [`lane_change_is_safe`]).
@@ -513,7 +530,7 @@ impl Controller {
                 }
             }
         }
-        let x_c = self.rules.conflict_point();
+        let in_lane_from = self.scene_entry();
         let mut cars = Vec::with_capacity(found.len());
         self.lane_class.clear();
         for (id, lane, on) in found {
@@ -537,7 +554,7 @@ impl Controller {
             };
             self.lane_class.insert(id.clone(), lane.clone());
             cars.push(Car {
-                on_ramp: ramp && x < x_c,
+                on_ramp: ramp && x < in_lane_from,
                 ramp_lane: ramp.then_some(lane),
                 id,
                 x,
@@ -592,9 +609,9 @@ impl Controller {
     }
 
     /// Whether an ego has merged (SUMO has it on a target lane) and whether it is released
-    /// (merged and `release_after` past the conflict point). A ramp vehicle past the conflict
-    /// point whose lane change SUMO has not made yet is neither: the internal simulator's rule
-    /// counts it in the target lane for the scene, but until it is there the policy keeps it.
+    /// (merged and `release_after` past the conflict point). A ramp vehicle past its scene entry
+    /// whose lane change SUMO has not made yet is neither: the scenes count it in the target
+    /// lane, but until it is there the policy keeps it.
     fn merge_progress(&self, c: &Car) -> (bool, bool) {
         let merged = c.ramp_lane.is_none();
         let release = merged && c.x >= self.rules.conflict_point() + self.geometry.release_after;
@@ -668,6 +685,7 @@ impl Controller {
     fn decide(&mut self, cars: &[Car], games: &[Game]) -> Vec<(usize, f64)> {
         let layout = Layout::of(&self.config);
         let dim = layout.dim();
+        let x_c = self.rules.conflict_point();
         let frame = Frame::of(&self.config);
         let lane_width = self.config.scenario.lane_width;
         let mut rows: Vec<(usize, usize, usize)> = Vec::new(); // (scene, member, car)
@@ -731,21 +749,24 @@ impl Controller {
                 } else {
                     (&scenes[si], m)
                 };
-                let a = applied_action(
-                    &self.rules_for(&cars[j]),
-                    self.config.sim.feasibility,
-                    scene,
-                    i,
-                    nb,
-                    f64::from(a),
-                );
+                let rules = self.rules_for(&cars[j]);
+                let mut a = applied_action(&rules, self.config.sim.feasibility, scene, i, nb, f64::from(a));
+                // Before the conflict point a ramp vehicle the scenes count in the target lane
+                // (scene_entry) is still on the ramp for the merge gate, when it is on.
+                let car = &cars[j];
+                if rules.merge_gate && self.config.sim.feasibility && car.is_waiting() && car.x < x_c {
+                    let lane = ego_and_target_lane(cars, j, lane_width);
+                    if gate_holds(&lane, 0, &rules.gate) {
+                        a = a.min(stop_bound(&car.x, &car.v, &rules.gate));
+                    }
+                }
                 (j, a)
             })
             .collect()
     }
 
     /// The rules `car`'s action is applied under: the world's, but a ramp vehicle waiting past
-    /// the conflict point ([`Car::is_waiting`]) keeps [`WAITING_MARGIN`] more to the
+    /// its scene entry ([`Car::is_waiting`]) keeps [`WAITING_MARGIN`] more to the
     /// target-lane vehicles around it.
     fn rules_for(&self, car: &Car) -> WorldRules {
         let mut rules = self.rules;
@@ -786,8 +807,8 @@ impl Controller {
     }
 }
 
-/// Lets a target-lane vehicle pass a ramp vehicle waiting beside it: a ramp vehicle past the
-/// conflict point that SUMO has not moved to the target lane yet is in the target lane of the
+/// Lets a target-lane vehicle pass a ramp vehicle waiting beside it: a ramp vehicle past its
+/// scene entry that SUMO has not moved to the target lane yet is in the target lane of the
 /// scene (`on_ramp` false), but a target-lane vehicle less than `length` behind it is beside
 /// it, not behind it, so its lane leader is the next one ahead. Taking the waiting vehicle as
 /// its leader it could only stop (its gap is negative), beside a vehicle that cannot change
@@ -805,12 +826,20 @@ fn pass_beside_waiting(cars: &[Car], game: &Game, scene: &Scene, nb: &mut [Neigh
     }
 }
 
-/// Ramp vehicle `j` (first) and every target-lane vehicle, as the merge gate sees them.
+/// Ramp vehicle `j` (first, on the ramp) and every other vehicle in the scene's target lane,
+/// as the merge gate sees them.
 fn ego_and_target_lane(cars: &[Car], j: usize, lane_width: f64) -> Scene {
+    let mut me = cars[j].vehicle(lane_width);
+    me.on_ramp = true;
+    me.y = -lane_width;
     Scene::new(
-        std::iter::once(&cars[j])
-            .chain(cars.iter().filter(|c| !c.on_ramp))
-            .map(|c| c.vehicle(lane_width))
+        std::iter::once(me)
+            .chain(
+                cars.iter()
+                    .enumerate()
+                    .filter(|&(k, c)| k != j && !c.on_ramp)
+                    .map(|(_, c)| c.vehicle(lane_width)),
+            )
             .collect(),
     )
 }
@@ -1039,6 +1068,20 @@ mod tests {
         // The car beside it (a player, driven by the policy) only gets its projection.
         let lane = commands.iter().find(|(j, _)| *j == 1).unwrap().1;
         assert!(lane > 0.0, "{lane}");
+        // A traffic policy counts the ego in the target lane from merge_from (here 250 m) on;
+        // the gate still holds it before x_c.
+        c.traffic = true;
+        c.geometry.merge_from = Some(250.0);
+        let mut ego = car("ego", 293.0, 10.0, false);
+        ego.ramp_lane = Some("merge_0".into());
+        let cars = [ego, car("lane.1", 288.0, 12.0, false)];
+        let game = Game {
+            members: vec![(0, 0), (1, 0)],
+            ego: 0,
+        };
+        let commands = c.decide(&cars, &[game]);
+        let ego = commands.iter().find(|(j, _)| *j == 0).unwrap().1;
+        assert!((ego + 1.77).abs() < 0.01, "waiting ego held at 300 m: {ego}");
     }
 
     /// A policy whose every action is +g (all weights 0, output bias large).
@@ -1093,6 +1136,27 @@ mod tests {
         // At x_c the merge happens whatever is there.
         let at_x_c = [car("ego", 180.0, 12.0, true), car("lane", 178.0, 12.0, false)];
         assert!(c.merges_now(&at_x_c, 0));
+        // An ego the scenes already count in the target lane is not its own follower.
+        let mut entered = car("ego", 150.0, 12.0, false);
+        entered.ramp_lane = Some("merge_0".into());
+        assert!(c.merges_now(&[entered.clone()], 0));
+        assert!(!c.merges_now(&[entered, car("lane", 145.0, 12.0, false)], 0));
+    }
+
+    #[test]
+    fn with_a_traffic_policy_a_ramp_vehicle_enters_the_scene_at_merge_from() {
+        let mut c = paper_controller();
+        // A Table I policy: at x_c, as the internal simulator, merge_from or not.
+        assert_eq!(c.scene_entry(), 180.0);
+        c.geometry.merge_from = Some(138.0);
+        assert_eq!(c.scene_entry(), 180.0);
+        // A traffic policy: where the ego starts asking for the lane change; never past x_c.
+        c.traffic = true;
+        assert_eq!(c.scene_entry(), 138.0);
+        c.geometry.merge_from = Some(200.0);
+        assert_eq!(c.scene_entry(), 180.0);
+        c.geometry.merge_from = None;
+        assert_eq!(c.scene_entry(), 180.0);
     }
 
     #[test]
