@@ -72,6 +72,7 @@ use crate::sumo::{Sumo, SumoError};
 use crate::world::merge_gate::{gate_holds, lane_change_is_safe, stop_bound};
 use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
+use crate::world::safety::{Neighbor, clip_action, feasible_interval};
 use crate::world::state::{Scene, Vehicle};
 use crate::world::step::applied_action;
 use serde::Serialize;
@@ -205,6 +206,8 @@ pub struct Controller {
     rules: WorldRules,
     geometry: MergeGeometry,
     positions: LanePositions,
+    /// Where the acceleration lane (the last ramp lane) ends, when `positions` knows it (m).
+    lane_end: Option<f64>,
     kind: ControllerKind,
     policy: Option<PolicyEnsemble>,
     modes: ControlModes,
@@ -254,6 +257,12 @@ pub const PLAYER_COLOUR: [u8; 3] = [255, 150, 0];
 /// this margin).
 pub const WAITING_MARGIN: f64 = 2.0;
 
+/// Deceleration (m/s^2) at which a ramp vehicle waiting past the conflict point prepares to
+/// stop at the acceleration lane's end ([`Controller`]'s `lane_end_bound`). Measured on
+/// `i80_merge` (every grid deployment at demand 1.2): 1.0 and 3.5 left more egos in an SSM
+/// conflict or slower than 2.0 did.
+pub const LANE_END_BRAKE: f64 = 2.0;
+
 impl Controller {
     /// A controller; `policy` is required for `mpg` and `sarl`. Every rule (observation,
     /// feasibility projection, merge gate, release) uses the network's conflict point, from
@@ -278,11 +287,17 @@ impl Controller {
             (Some(v), Some([lo, hi])) => v.clamp(lo, hi),
             _ => config.reward.v_desired,
         });
+        let lane_end = geometry
+            .ramp_lanes
+            .last()
+            .and_then(|lane| positions.span(lane))
+            .map(|(_, end)| end);
         Controller {
             config,
             rules,
             geometry,
             positions,
+            lane_end,
             kind,
             policy,
             modes,
@@ -693,6 +708,7 @@ impl Controller {
         let mut scenes = Vec::with_capacity(games.len());
         let mut claimed = HashSet::new();
         let mut neighbors = Vec::new();
+        let mut scene_cars = Vec::new();
         for game in games {
             // Traffic games share one scene (every car, in the order of `cars`): built once.
             if scenes.is_empty() || !self.traffic {
@@ -705,9 +721,10 @@ impl Controller {
                 scene.v_desired = self.v_desired;
                 let mut nb = Vec::new();
                 find_neighbors(&scene, &mut self.order, &mut nb);
-                pass_beside_waiting(cars, game, &scene, &mut nb, self.rules.length);
+                pass_beside_waiting(cars, game, &scene, &mut nb, self.rules.clearance());
                 scenes.push(scene);
                 neighbors.push(nb);
+                scene_cars.push(game.members.iter().map(|&(j, _)| j).collect::<Vec<_>>());
             }
             let si = scenes.len() - 1;
             let (scene, nb) = (&scenes[si], &neighbors[si]);
@@ -749,8 +766,26 @@ impl Controller {
                 } else {
                     (&scenes[si], m)
                 };
-                let rules = self.rules_for(&cars[j]);
+                let scene_leader = nb.lane_leader.map(|l| scene_cars[si][l]);
+                let rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
                 let mut a = applied_action(&rules, self.config.sim.feasibility, scene, i, nb, f64::from(a));
+                if self.config.sim.feasibility {
+                    let bounds = [
+                        ramp_leader_bound(cars, j, scene_leader, &rules),
+                        self.lane_end_bound(&cars[j], &rules),
+                    ];
+                    if let Some(hi) = bounds.into_iter().flatten().reduce(f64::min) {
+                        let v = cars[j].v;
+                        a = clip_action(
+                            &a.min(hi),
+                            &v,
+                            rules.max_accel,
+                            rules.v_min,
+                            rules.v_max,
+                            rules.dt,
+                        );
+                    }
+                }
                 // Before the conflict point a ramp vehicle the scenes count in the target lane
                 // (scene_entry) is still on the ramp for the merge gate, when it is on.
                 let car = &cars[j];
@@ -765,15 +800,39 @@ impl Controller {
             .collect()
     }
 
-    /// The rules `car`'s action is applied under: the world's, but a ramp vehicle waiting past
-    /// its scene entry ([`Car::is_waiting`]) keeps [`WAITING_MARGIN`] more to the
-    /// target-lane vehicles around it.
-    fn rules_for(&self, car: &Car) -> WorldRules {
+    /// The rules `car`'s action is applied under, `lane_leader` being its leader in the
+    /// scene's lane: the world's, but a ramp vehicle waiting past its scene entry
+    /// ([`Car::is_waiting`]) keeps [`WAITING_MARGIN`] more to the target-lane vehicles around
+    /// it, and a target-lane vehicle behind a waiting one keeps it too. Without the second
+    /// half, a player that came within the clearance behind a waiting ego converged back to a
+    /// bumper gap of `sim.safety_gap` only, below what SUMO needs for the lane change, and
+    /// the two drove side by side to the acceleration lane's end (`i80_merge`, the game,
+    /// demand 1.0, SUMO seed 2: 13% of the egos in an SSM conflict, 7% with it; section 0y
+    /// of docs/traffic_acceptance.md).
+    fn rules_for(&self, car: &Car, lane_leader: Option<&Car>) -> WorldRules {
         let mut rules = self.rules;
-        if car.is_waiting() {
+        if car.is_waiting() || lane_leader.is_some_and(Car::is_waiting) {
             rules.gate.clearance += WAITING_MARGIN;
         }
         rules
+    }
+
+    /// The largest action that lets a ramp vehicle waiting past the conflict point stop at
+    /// the acceleration lane's end braking at [`LANE_END_BRAKE`], but never more than
+    /// `sim.b_safe` (none for other vehicles, or when the network's lane end is unknown).
+    /// The internal world has no lane end (a ramp vehicle is in the target lane from x_c on);
+    /// in SUMO a waiting ego that reached the end at speed was braked there by SUMO's safe
+    /// speed at 4.5 m/s^2, and the ramp vehicle behind it closed in at a TTC below 3 s
+    /// (`i80_merge`, the game, demand 1.2: most of the 16-22% of egos in an SSM conflict).
+    fn lane_end_bound(&self, car: &Car, rules: &WorldRules) -> Option<f64> {
+        let end = self.lane_end?;
+        if !car.is_waiting() || car.x < rules.conflict_point() {
+            return None;
+        }
+        let mut stop = rules.gate;
+        stop.conflict_point = end - 0.5 * rules.length;
+        stop.brake = LANE_END_BRAKE;
+        Some(stop_bound(&car.x, &car.v, &stop).max(-rules.gate.b_safe))
     }
 
     /// Whether the MPG policy drives this player. `"all"`: every player, wherever it is (the
@@ -809,21 +868,62 @@ impl Controller {
 
 /// Lets a target-lane vehicle pass a ramp vehicle waiting beside it: a ramp vehicle past its
 /// scene entry that SUMO has not moved to the target lane yet is in the target lane of the
-/// scene (`on_ramp` false), but a target-lane vehicle less than `length` behind it is beside
-/// it, not behind it, so its lane leader is the next one ahead. Taking the waiting vehicle as
-/// its leader it could only stop (its gap is negative), beside a vehicle that cannot change
-/// lanes until it has passed: measured on `i80_merge`, the game stood still.
-fn pass_beside_waiting(cars: &[Car], game: &Game, scene: &Scene, nb: &mut [Neighbors], length: f64) {
+/// scene (`on_ramp` false), but a target-lane vehicle less than `clearance` (the feasibility
+/// projection's: length plus `sim.safety_gap`) behind it is beside it, not behind it, so its
+/// lane leader is the next one ahead. Taking the waiting vehicle as its leader it could only
+/// fall back (its gap is below the clearance), and once stopped there it stays too close for
+/// the lane change, beside a vehicle that cannot change lanes until it has passed: measured
+/// on `i80_merge`, the game stood still with the threshold at 0 m; at a car length, pairs
+/// stopped 5-7 m apart at the lane's end and queues formed behind them (the game, demand
+/// 1.2, SUMO seed 1: 192 of 215 egos finished at 0.60 of SUMO's drivers' speed).
+fn pass_beside_waiting(cars: &[Car], game: &Game, scene: &Scene, nb: &mut [Neighbors], clearance: f64) {
     for m in 0..scene.len() {
         let Some(l) = nb[m].lane_leader else {
             continue;
         };
         let (me, leader) = (&cars[game.members[m].0], &cars[game.members[l].0]);
-        if leader.is_waiting() && me.ramp_lane.is_none() && scene.vehicles[l].x - scene.vehicles[m].x < length
+        if leader.is_waiting()
+            && me.ramp_lane.is_none()
+            && scene.vehicles[l].x - scene.vehicles[m].x < clearance
         {
             nb[m].lane_leader = nb[l].lane_leader;
         }
     }
+}
+
+/// The feasibility projection's upper bound (TTC >= tau_s, `rules`' clearance) of ramp-lane
+/// vehicle `j` towards the vehicle physically ahead of it on the ramp lanes, when that is not
+/// already its leader in the scene (`scene_leader`). A ramp vehicle past its scene entry is in
+/// the scene's target lane, so the ramp vehicle behind it no longer had it as a leader, nor
+/// did a waiting one that had a target-lane car between them in the scene; both closed in on
+/// it until SUMO's safe speed braked them. The observation stays the scene's.
+fn ramp_leader_bound(cars: &[Car], j: usize, scene_leader: Option<usize>, rules: &WorldRules) -> Option<f64> {
+    let me = &cars[j];
+    me.ramp_lane.as_ref()?;
+    let k = (0..cars.len())
+        .filter(|&k| k != j && cars[k].ramp_lane.is_some() && cars[k].x > me.x)
+        .min_by(|&a, &b| cars[a].x.total_cmp(&cars[b].x))
+        .filter(|&k| Some(k) != scene_leader)?;
+    let leader = Neighbor {
+        x: cars[k].x,
+        v: cars[k].v,
+        present: 1.0,
+    };
+    let none = Neighbor {
+        x: me.x,
+        v: me.v,
+        present: 0.0,
+    };
+    let (_, hi) = feasible_interval(
+        &me.x,
+        &me.v,
+        &leader,
+        &none,
+        rules.clearance(),
+        rules.dt,
+        rules.tau_s,
+    );
+    Some(hi)
 }
 
 /// Ramp vehicle `j` (first, on the ramp) and every other vehicle in the scene's target lane,
@@ -949,14 +1049,14 @@ mod tests {
     #[test]
     fn a_car_beside_a_waiting_ramp_vehicle_passes_it() {
         // Ramp vehicle W past x_c, still on the acceleration lane (in the scene's target lane);
-        // target-lane cars B 3 m behind it (beside it: less than a 5 m car length), F 6 m
-        // behind it, and A ahead.
+        // target-lane cars B 6 m behind it (beside it: inside the 7 m clearance of 5 m cars
+        // with a 2 m safety gap), F 9 m behind it, and A ahead.
         let mut w = car("W", 190.0, 0.0, false);
         w.ramp_lane = Some("merge_0".into());
         let cars = [
             w,
-            car("B", 187.0, 10.0, false),
-            car("F", 184.0, 10.0, false),
+            car("B", 184.0, 10.0, false),
+            car("F", 181.0, 10.0, false),
             car("A", 230.0, 10.0, false),
         ];
         let game = Game {
@@ -967,8 +1067,8 @@ mod tests {
         let mut nb = Vec::new();
         find_neighbors(&scene, &mut Vec::new(), &mut nb);
         assert_eq!(nb[1].lane_leader, Some(0));
-        pass_beside_waiting(&cars, &game, &scene, &mut nb, 5.0);
-        // B passes W (its leader is A); F, behind W by more than a length, follows B; W's own
+        pass_beside_waiting(&cars, &game, &scene, &mut nb, 7.0);
+        // B passes W (its leader is A); F, behind W by more than the clearance, follows B; W's own
         // neighbours stay.
         assert_eq!(nb[1].lane_leader, Some(3));
         assert_eq!(nb[2].lane_leader, Some(1));
@@ -977,7 +1077,7 @@ mod tests {
         let mut merged = cars.clone();
         merged[0].ramp_lane = None;
         find_neighbors(&scene, &mut Vec::new(), &mut nb);
-        pass_beside_waiting(&merged, &game, &scene, &mut nb, 5.0);
+        pass_beside_waiting(&merged, &game, &scene, &mut nb, 7.0);
         assert_eq!(nb[1].lane_leader, Some(0));
     }
 
@@ -997,9 +1097,82 @@ mod tests {
         ]);
         let mut nb = Vec::new();
         find_neighbors(&scene, &mut Vec::new(), &mut nb);
-        let act = |car: &Car| applied_action(&c.rules_for(car), true, &scene, 0, &nb[0], 0.0);
+        let act = |car: &Car| applied_action(&c.rules_for(car, None), true, &scene, 0, &nb[0], 0.0);
         assert!(act(&merged).abs() < 1e-9);
         assert!((act(&waiting) + 20.0 / 3.0).abs() < 1e-9, "{}", act(&waiting));
+    }
+
+    #[test]
+    fn a_car_behind_a_waiting_ego_keeps_the_margin_too() {
+        // Paper setting (7 m clearance, tau_s = 3 s, dt = 0.1 s). Target-lane car F 8 m
+        // (centre to centre) behind W, both at 10 m/s. Behind a merged W it may keep its
+        // speed (v' <= 10 + (8 - 7) / 3); behind a waiting W its clearance is 9 m, so
+        // v' <= 10 + (8 - 9) / 3: a <= -10/3 m/s^2.
+        let c = paper_controller();
+        let merged = car("W", 190.0, 10.0, false);
+        let mut waiting = merged.clone();
+        waiting.ramp_lane = Some("merge_0".into());
+        let follower = car("F", 182.0, 10.0, false);
+        let scene = Scene::new(vec![follower.vehicle(3.66), merged.vehicle(3.66)]);
+        let mut nb = Vec::new();
+        find_neighbors(&scene, &mut Vec::new(), &mut nb);
+        assert_eq!(nb[0].lane_leader, Some(1));
+        let act = |leader: &Car| {
+            applied_action(
+                &c.rules_for(&follower, Some(leader)),
+                true,
+                &scene,
+                0,
+                &nb[0],
+                0.0,
+            )
+        };
+        assert!(act(&merged).abs() < 1e-9, "{}", act(&merged));
+        assert!((act(&waiting) + 10.0 / 3.0).abs() < 1e-9, "{}", act(&waiting));
+    }
+
+    #[test]
+    fn a_ramp_vehicle_keeps_its_ttc_to_the_waiting_vehicle_ahead_on_its_lane() {
+        // W waits at 190 m, stopped, on the acceleration lane (in the scene's target lane);
+        // ramp vehicle R at 170 m and 10 m/s; a second waiting vehicle farther ahead and a
+        // target-lane car in between do not count. One step on, the bumper gap less the
+        // 2 m safety gap is 190 - 171 - 7 = 12 m, so v' <= 0 + 12 / 3 = 4: a <= -60 m/s^2
+        // (before the clip to -g).
+        let c = paper_controller();
+        let mut w = car("W", 190.0, 0.0, false);
+        w.ramp_lane = Some("merge_0".into());
+        let mut far = w.clone();
+        far.x = 200.0;
+        let cars = [car("R", 170.0, 10.0, true), far, car("T", 180.0, 10.0, false), w];
+        let rules = c.rules_for(&cars[0], None);
+        let hi = ramp_leader_bound(&cars, 0, None, &rules).expect("a ramp leader");
+        assert!((hi + 60.0).abs() < 1e-9, "{hi}");
+        // Already its leader in the scene: the projection has it; a target-lane car: none.
+        assert_eq!(ramp_leader_bound(&cars, 0, Some(3), &rules), None);
+        assert_eq!(ramp_leader_bound(&cars, 2, None, &rules), None);
+    }
+
+    #[test]
+    fn a_waiting_ego_past_x_c_prepares_to_stop_at_the_lane_end() {
+        // Lane end at 222 m: a 5 m car's centre stops at 219.5 m less the gate's 0.1 m margin.
+        // At 193 m and 10 m/s, one step on 25.4 m remain: v' = sqrt(2 * 2 * 25.4 + 0.2^2) - 0.2
+        // = 9.8817, a = -1.1833 m/s^2. At 195 m the bound asks -5.23, floored at b_safe's -4.
+        let mut c = paper_controller();
+        c.lane_end = Some(222.0);
+        let waiting = |x: f64| {
+            let mut w = car("W", x, 10.0, false);
+            w.ramp_lane = Some("merge_0".into());
+            w
+        };
+        let bound = |c: &Controller, w: &Car| c.lane_end_bound(w, &c.rules_for(w, None));
+        let a = bound(&c, &waiting(193.0)).unwrap();
+        assert!((a + 1.183_334_7).abs() < 1e-6, "{a}");
+        assert_eq!(bound(&c, &waiting(195.0)), Some(-4.0));
+        // Before x_c (the merge zone, as trained), merged, or with no known lane end: none.
+        assert_eq!(bound(&c, &waiting(175.0)), None);
+        assert_eq!(bound(&c, &car("W", 193.0, 10.0, false)), None);
+        c.lane_end = None;
+        assert_eq!(bound(&c, &waiting(193.0)), None);
     }
 
     #[test]
