@@ -53,7 +53,12 @@
 //! `merge.toml`'s `merge_from` it is told so earlier, at the first step from there on where
 //! the lane change is safe (as the traffic world's `scenario.merge_zone`), and with a traffic
 //! policy the scenes count it in the target lane from `merge_from` on: the vehicles behind
-//! it make room for it, as SUMO's drivers do for a vehicle that signals a merge. Target-lane players keep SUMO's own lane changes
+//! it make room for it, as SUMO's drivers do for a vehicle that signals a merge. Around a
+//! waiting vehicle, the car behind keeps the margin too, a car within the clearance beside it
+//! passes it, the ramp vehicles behind it keep the projection's TTC to it, and past x_c it
+//! prepares to stop at the acceleration lane's end ([`LANE_END_BRAKE`]). These rules for
+//! waiting vehicles apply only where SUMO may hold a lane change back (lane-change mode bits
+//! 8-9); in [`ControlModes::EXACT`] nothing waits and the internal world's rules hold. Target-lane players keep SUMO's own lane changes
 //! ([`ControlModes::player_lane_change`]). Positions are along the lanes
 //! ([`LanePositions`]). Control ends when the ego is
 //! `release_after` metres past the conflict point on the target lane; SUMO then drives it
@@ -440,9 +445,20 @@ impl Controller {
     fn scene_entry(&self) -> f64 {
         let x_c = self.rules.conflict_point();
         match self.geometry.merge_from {
-            Some(from) if self.traffic => from.min(x_c),
+            Some(from) if self.traffic && self.sumo_holds_lane_changes() => from.min(x_c),
             _ => x_c,
         }
+    }
+
+    /// Whether SUMO may hold back a lane change the controller asks for (the ramp vehicles'
+    /// lane-change mode has bits 8-9, TraCI requests checked against other vehicles). Only
+    /// then can a ramp vehicle wait beside the target lane, and only then do the rules for
+    /// waiting vehicles apply (`scene_entry` at `merge_from`, [`WAITING_MARGIN`], the car
+    /// beside passing, the physical ramp leader, the lane's end): with mode 0
+    /// ([`ControlModes::EXACT`]) a lane change is made the step it is asked for, as the
+    /// internal world makes it, and the co-simulation reproduces the internal world.
+    fn sumo_holds_lane_changes(&self) -> bool {
+        (self.modes.lane_change >> 8) & 3 != 0
     }
 
     /// Whether ramp vehicle `car`, driven by the policy, changes to the target lane now: at
@@ -721,7 +737,9 @@ impl Controller {
                 scene.v_desired = self.v_desired;
                 let mut nb = Vec::new();
                 find_neighbors(&scene, &mut self.order, &mut nb);
-                pass_beside_waiting(cars, game, &scene, &mut nb, self.rules.clearance());
+                if self.sumo_holds_lane_changes() {
+                    pass_beside_waiting(cars, game, &scene, &mut nb, self.rules.clearance());
+                }
                 scenes.push(scene);
                 neighbors.push(nb);
                 scene_cars.push(game.members.iter().map(|&(j, _)| j).collect::<Vec<_>>());
@@ -769,7 +787,7 @@ impl Controller {
                 let scene_leader = nb.lane_leader.map(|l| scene_cars[si][l]);
                 let rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
                 let mut a = applied_action(&rules, self.config.sim.feasibility, scene, i, nb, f64::from(a));
-                if self.config.sim.feasibility {
+                if self.config.sim.feasibility && self.sumo_holds_lane_changes() {
                     let bounds = [
                         ramp_leader_bound(cars, j, scene_leader, &rules),
                         self.lane_end_bound(&cars[j], &rules),
@@ -801,7 +819,8 @@ impl Controller {
     }
 
     /// The rules `car`'s action is applied under, `lane_leader` being its leader in the
-    /// scene's lane: the world's, but a ramp vehicle waiting past its scene entry
+    /// scene's lane: the world's, but where SUMO may hold lane changes back
+    /// (`sumo_holds_lane_changes`) a ramp vehicle waiting past its scene entry
     /// ([`Car::is_waiting`]) keeps [`WAITING_MARGIN`] more to the target-lane vehicles around
     /// it, and a target-lane vehicle behind a waiting one keeps it too. Without the second
     /// half, a player that came within the clearance behind a waiting ego converged back to a
@@ -811,7 +830,8 @@ impl Controller {
     /// of docs/traffic_acceptance.md).
     fn rules_for(&self, car: &Car, lane_leader: Option<&Car>) -> WorldRules {
         let mut rules = self.rules;
-        if car.is_waiting() || lane_leader.is_some_and(Car::is_waiting) {
+        let waits = |c: &Car| self.sumo_holds_lane_changes() && c.is_waiting();
+        if waits(car) || lane_leader.is_some_and(waits) {
             rules.gate.clearance += WAITING_MARGIN;
         }
         rules
@@ -819,14 +839,15 @@ impl Controller {
 
     /// The largest action that lets a ramp vehicle waiting past the conflict point stop at
     /// the acceleration lane's end braking at [`LANE_END_BRAKE`], but never more than
-    /// `sim.b_safe` (none for other vehicles, or when the network's lane end is unknown).
+    /// `sim.b_safe` (none for other vehicles, when SUMO makes lane changes at once, or when
+    /// the network's lane end is unknown).
     /// The internal world has no lane end (a ramp vehicle is in the target lane from x_c on);
     /// in SUMO a waiting ego that reached the end at speed was braked there by SUMO's safe
     /// speed at 4.5 m/s^2, and the ramp vehicle behind it closed in at a TTC below 3 s
     /// (`i80_merge`, the game, demand 1.2: most of the 16-22% of egos in an SSM conflict).
     fn lane_end_bound(&self, car: &Car, rules: &WorldRules) -> Option<f64> {
         let end = self.lane_end?;
-        if !car.is_waiting() || car.x < rules.conflict_point() {
+        if !self.sumo_holds_lane_changes() || !car.is_waiting() || car.x < rules.conflict_point() {
             return None;
         }
         let mut stop = rules.gate;
@@ -1173,6 +1194,10 @@ mod tests {
         assert_eq!(bound(&c, &car("W", 193.0, 10.0, false)), None);
         c.lane_end = None;
         assert_eq!(bound(&c, &waiting(193.0)), None);
+        // In exact modes nothing waits (SUMO makes the lane change at once): no bound.
+        c.lane_end = Some(222.0);
+        c.modes = ControlModes::EXACT;
+        assert_eq!(bound(&c, &waiting(193.0)), None);
     }
 
     #[test]
@@ -1325,6 +1350,12 @@ mod tests {
         assert_eq!(c.scene_entry(), 180.0);
         // A traffic policy: where the ego starts asking for the lane change; never past x_c.
         c.traffic = true;
+        assert_eq!(c.scene_entry(), 138.0);
+        // In exact modes SUMO makes a lane change the step it is asked for: nothing waits,
+        // and the scenes are the internal world's (at x_c at the latest).
+        c.modes = ControlModes::EXACT;
+        assert_eq!(c.scene_entry(), 180.0);
+        c.modes.lane_change = 512;
         assert_eq!(c.scene_entry(), 138.0);
         c.geometry.merge_from = Some(200.0);
         assert_eq!(c.scene_entry(), 180.0);
