@@ -461,6 +461,12 @@ impl Controller {
         (self.modes.lane_change >> 8) & 3 != 0
     }
 
+    /// Whether `car` waits beside the target lane for a lane change SUMO holds back: past its
+    /// scene entry on a ramp lane ([`Car::is_waiting`]), where SUMO may hold one back.
+    fn waits(&self, car: &Car) -> bool {
+        self.sumo_holds_lane_changes() && car.is_waiting()
+    }
+
     /// Whether ramp vehicle `car`, driven by the policy, changes to the target lane now: at
     /// the conflict point, or from `merge_from` on where the lane change is safe (the traffic
     /// world's merge-zone rule, [`lane_change_is_safe`]).
@@ -787,9 +793,13 @@ impl Controller {
                 let scene_leader = nb.lane_leader.map(|l| scene_cars[si][l]);
                 let rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
                 let mut a = applied_action(&rules, self.config.sim.feasibility, scene, i, nb, f64::from(a));
-                if self.config.sim.feasibility && self.sumo_holds_lane_changes() {
+                if self.config.sim.feasibility {
                     let bounds = [
-                        ramp_leader_bound(cars, j, scene_leader, &rules),
+                        if self.sumo_holds_lane_changes() {
+                            ramp_leader_bound(cars, j, scene_leader, &rules)
+                        } else {
+                            None
+                        },
                         self.lane_end_bound(&cars[j], &rules),
                     ];
                     if let Some(hi) = bounds.into_iter().flatten().reduce(f64::min) {
@@ -830,8 +840,7 @@ impl Controller {
     /// of docs/traffic_acceptance.md).
     fn rules_for(&self, car: &Car, lane_leader: Option<&Car>) -> WorldRules {
         let mut rules = self.rules;
-        let waits = |c: &Car| self.sumo_holds_lane_changes() && c.is_waiting();
-        if waits(car) || lane_leader.is_some_and(waits) {
+        if self.waits(car) || lane_leader.is_some_and(|l| self.waits(l)) {
             rules.gate.clearance += WAITING_MARGIN;
         }
         rules
@@ -847,7 +856,7 @@ impl Controller {
     /// (`i80_merge`, the game, demand 1.2: most of the 16-22% of egos in an SSM conflict).
     fn lane_end_bound(&self, car: &Car, rules: &WorldRules) -> Option<f64> {
         let end = self.lane_end?;
-        if !self.sumo_holds_lane_changes() || !car.is_waiting() || car.x < rules.conflict_point() {
+        if !self.waits(car) || car.x < rules.conflict_point() {
             return None;
         }
         let mut stop = rules.gate;
@@ -986,6 +995,15 @@ mod tests {
     use crate::policy::network::PolicyNet;
     use crate::world::merge_gate::{GateRules, entry_is_safe};
 
+    /// A ramp vehicle past its scene entry that SUMO has not moved yet: in the scene's target
+    /// lane, on the acceleration lane in SUMO.
+    fn waiting_car(id: &str, x: f64, v: f64) -> Car {
+        Car {
+            ramp_lane: Some("merge_0".to_owned()),
+            ..car(id, x, v, false)
+        }
+    }
+
     fn car(id: &str, x: f64, v: f64, on_ramp: bool) -> Car {
         Car {
             id: id.to_owned(),
@@ -1053,8 +1071,7 @@ mod tests {
         c.geometry.release_after = 0.0;
         // Past x_c still on the acceleration lane: the scene counts it in the target lane
         // (on_ramp false), SUMO does not.
-        let mut waiting = car("ramp.1", 185.0, 10.0, false);
-        waiting.ramp_lane = Some("merge_0".into());
+        let waiting = waiting_car("ramp.1", 185.0, 10.0);
         assert_eq!(c.merge_progress(&waiting), (false, false));
         assert_eq!(c.merge_progress(&car("ramp.1", 185.0, 10.0, false)), (true, true));
         assert_eq!(
@@ -1072,8 +1089,7 @@ mod tests {
         // Ramp vehicle W past x_c, still on the acceleration lane (in the scene's target lane);
         // target-lane cars B 6 m behind it (beside it: inside the 7 m clearance of 5 m cars
         // with a 2 m safety gap), F 9 m behind it, and A ahead.
-        let mut w = car("W", 190.0, 0.0, false);
-        w.ramp_lane = Some("merge_0".into());
+        let w = waiting_car("W", 190.0, 0.0);
         let cars = [
             w,
             car("B", 184.0, 10.0, false),
@@ -1109,8 +1125,7 @@ mod tests {
         // merged, it may keep its speed (a = 0 is feasible); waiting, its clearance is 9 m,
         // so it must fall back: v' <= 10 + (7 - 9) / 3, a <= -6.67 m/s^2.
         let c = paper_controller();
-        let mut waiting = car("ego", 180.0, 10.0, false);
-        waiting.ramp_lane = Some("merge_0".into());
+        let waiting = waiting_car("ego", 180.0, 10.0);
         let merged = car("ego", 180.0, 10.0, false);
         let scene = Scene::new(vec![
             merged.vehicle(3.66),
@@ -1131,8 +1146,7 @@ mod tests {
         // v' <= 10 + (8 - 9) / 3: a <= -10/3 m/s^2.
         let c = paper_controller();
         let merged = car("W", 190.0, 10.0, false);
-        let mut waiting = merged.clone();
-        waiting.ramp_lane = Some("merge_0".into());
+        let waiting = waiting_car("W", 190.0, 10.0);
         let follower = car("F", 182.0, 10.0, false);
         let scene = Scene::new(vec![follower.vehicle(3.66), merged.vehicle(3.66)]);
         let mut nb = Vec::new();
@@ -1160,8 +1174,7 @@ mod tests {
         // 2 m safety gap is 190 - 171 - 7 = 12 m, so v' <= 0 + 12 / 3 = 4: a <= -60 m/s^2
         // (before the clip to -g).
         let c = paper_controller();
-        let mut w = car("W", 190.0, 0.0, false);
-        w.ramp_lane = Some("merge_0".into());
+        let w = waiting_car("W", 190.0, 0.0);
         let mut far = w.clone();
         far.x = 200.0;
         let cars = [car("R", 170.0, 10.0, true), far, car("T", 180.0, 10.0, false), w];
@@ -1180,11 +1193,7 @@ mod tests {
         // = 9.8817, a = -1.1833 m/s^2. At 195 m the bound asks -5.23, floored at b_safe's -4.
         let mut c = paper_controller();
         c.lane_end = Some(222.0);
-        let waiting = |x: f64| {
-            let mut w = car("W", x, 10.0, false);
-            w.ramp_lane = Some("merge_0".into());
-            w
-        };
+        let waiting = |x: f64| waiting_car("W", x, 10.0);
         let bound = |c: &Controller, w: &Car| c.lane_end_bound(w, &c.rules_for(w, None));
         let a = bound(&c, &waiting(193.0)).unwrap();
         assert!((a + 1.183_334_7).abs() < 1e-6, "{a}");
@@ -1270,8 +1279,7 @@ mod tests {
         // the gate still holds it before x_c.
         c.traffic = true;
         c.geometry.merge_from = Some(250.0);
-        let mut ego = car("ego", 293.0, 10.0, false);
-        ego.ramp_lane = Some("merge_0".into());
+        let ego = waiting_car("ego", 293.0, 10.0);
         let cars = [ego, car("lane.1", 288.0, 12.0, false)];
         let game = Game {
             members: vec![(0, 0), (1, 0)],
@@ -1335,9 +1343,8 @@ mod tests {
         let at_x_c = [car("ego", 180.0, 12.0, true), car("lane", 178.0, 12.0, false)];
         assert!(c.merges_now(&at_x_c, 0));
         // An ego the scenes already count in the target lane is not its own follower.
-        let mut entered = car("ego", 150.0, 12.0, false);
-        entered.ramp_lane = Some("merge_0".into());
-        assert!(c.merges_now(&[entered.clone()], 0));
+        let entered = waiting_car("ego", 150.0, 12.0);
+        assert!(c.merges_now(std::slice::from_ref(&entered), 0));
         assert!(!c.merges_now(&[entered, car("lane", 145.0, 12.0, false)], 0));
     }
 
