@@ -9,8 +9,7 @@ use mpgdrive::engine::rollout::Recording;
 use mpgdrive::eval::EpisodeMetrics;
 use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::render::episode::render_episode;
-use mpgdrive::world::scenarios::{Preset, merged_between};
-use mpgdrive::world::state::Scene;
+use mpgdrive::world::scenarios::{Preset, merged_between_in};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -54,13 +53,7 @@ pub fn scenario(
     let mut files = render_episode(out, &name, &title, config, &outcome)?;
     let metrics = EpisodeMetrics::of(&outcome);
     let dt = config.sim.dt;
-    // The first state after the ego passed the conflict point: step m's action led to it.
-    let between = outcome.ego_merged_at.and_then(|m| {
-        let n = outcome.final_scene.len();
-        let states = &outcome.trajectory.as_ref()?.states;
-        let vehicles = states.get((m + 1) * n..(m + 2) * n)?.to_vec();
-        Some(merged_between(&Scene::new(vehicles)))
-    });
+    let between = merged_between_in(&outcome);
     let summary = format!(
         "{title}: {}; ego merged at {}, collision {}, mean speed {:.2} m/s, mean |u| {:.3} m/s^2",
         preset.description(),
@@ -85,6 +78,7 @@ pub fn scenario(
         "description": preset.description(),
         "policy": policy,
         "policy_seed": seed,
+        "state": preset.state(),
         "initial": preset.scene(config).vehicles.iter().map(|v| [v.x, v.v]).collect::<Vec<_>>(),
         "merged_at_step": outcome.ego_merged_at,
         "merged_between": between,

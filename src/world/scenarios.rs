@@ -9,6 +9,7 @@
 //!   ego, so the gap closes quickly: the ego waits for "5" to pass, then merges behind it.
 
 use crate::config::Config;
+use crate::engine::outcome::EpisodeOutcome;
 use crate::world::geometry::Road;
 use crate::world::state::{Scene, Vehicle};
 
@@ -40,19 +41,64 @@ impl Preset {
         }
     }
 
-    /// The initial scene for a configuration with 4 leaders and 4 followers (other counts:
-    /// the nearest ones of the same pattern). Positions are centres, relative to the
-    /// conflict point so that they hold for any `x_c`.
+    /// The preset's initial state.
+    pub fn state(self) -> PresetState {
+        match self {
+            Preset::One => PresetState {
+                ego_before: 80.0,
+                ego_speed: 12.0,
+                gap_ahead: 10.0,
+                gap_behind: 10.0,
+                leader_speed: 11.0,
+                follower_speed: 13.0,
+                headway: 14.0,
+            },
+            Preset::Two => PresetState {
+                ego_before: 80.0,
+                ego_speed: 10.0,
+                gap_ahead: 20.0,
+                gap_behind: 20.0,
+                leader_speed: 10.0,
+                follower_speed: 16.0,
+                headway: 14.0,
+            },
+        }
+    }
+
+    /// The initial scene for a configuration (see [`PresetState::scene`]).
     pub fn scene(self, config: &Config) -> Scene {
+        self.state().scene(config)
+    }
+}
+
+/// The initial state of a specific scenario: the ego on the ramp, the leaders "1"-"4" ahead of
+/// it and the followers "5"-"8" behind it on the target lane, each group at one speed.
+/// Distances are centre to centre (m), speeds in m/s.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PresetState {
+    /// Distance from the ego to the conflict point.
+    pub ego_before: f64,
+    /// The ego's speed.
+    pub ego_speed: f64,
+    /// Distance from the ego forward to the nearest leader "4".
+    pub gap_ahead: f64,
+    /// Distance from the ego back to the nearest follower "5".
+    pub gap_behind: f64,
+    /// Speed of every leader.
+    pub leader_speed: f64,
+    /// Speed of every follower.
+    pub follower_speed: f64,
+    /// Distance between successive leaders, and between successive followers.
+    pub headway: f64,
+}
+
+impl PresetState {
+    /// The scene for a configuration with 4 leaders and 4 followers (other counts: the nearest
+    /// ones of the same pattern). Positions are relative to the conflict point, so that they
+    /// hold for any `x_c`.
+    pub fn scene(&self, config: &Config) -> Scene {
         let road = Road::new(config);
-        let x_c = road.conflict_point;
-        // (ego distance before x_c, ego speed, gap ahead to "4", gap behind to "5",
-        //  leader speed, follower speed, headway between other players)
-        let (ego_d, ego_v, ahead, behind, v_lead, v_follow, headway) = match self {
-            Preset::One => (80.0, 12.0, 10.0, 10.0, 11.0, 13.0, 14.0),
-            Preset::Two => (80.0, 10.0, 20.0, 20.0, 10.0, 16.0, 14.0),
-        };
-        let ego_x = x_c - ego_d;
+        let ego_x = road.conflict_point - self.ego_before;
         let target = |x: f64, v: f64| Vehicle {
             x,
             y: road.lane_y(false),
@@ -64,15 +110,23 @@ impl Preset {
         let mut vehicles = vec![Vehicle {
             x: ego_x,
             y: road.lane_y(true),
-            v: ego_v,
+            v: self.ego_speed,
             phi: 0.0,
             on_ramp: true,
         }];
         // "1" (front-most) .. "n_l" (nearest).
-        vehicles.extend((0..n_l).map(|k| target(ego_x + ahead + (n_l - 1 - k) as f64 * headway, v_lead)));
-        vehicles.extend(
-            (0..config.scenario.n_followers).map(|k| target(ego_x - behind - k as f64 * headway, v_follow)),
-        );
+        vehicles.extend((0..n_l).map(|k| {
+            target(
+                ego_x + self.gap_ahead + (n_l - 1 - k) as f64 * self.headway,
+                self.leader_speed,
+            )
+        }));
+        vehicles.extend((0..config.scenario.n_followers).map(|k| {
+            target(
+                ego_x - self.gap_behind - k as f64 * self.headway,
+                self.follower_speed,
+            )
+        }));
         Scene::new(vehicles)
     }
 }
@@ -101,10 +155,51 @@ pub fn merged_between(scene: &Scene) -> [usize; 2] {
     [front, back]
 }
 
+/// The players the ego of a fully recorded episode merged between ([`merged_between`] of the
+/// first state after it passed the conflict point); `None` if it never merged or the episode
+/// was not recorded.
+pub fn merged_between_in(outcome: &EpisodeOutcome) -> Option<[usize; 2]> {
+    let m = outcome.ego_merged_at?;
+    let n = outcome.final_scene.len();
+    // Step m's action led to state m + 1.
+    let states = outcome
+        .trajectory
+        .as_ref()?
+        .states
+        .get((m + 1) * n..(m + 2) * n)?;
+    Some(merged_between(&Scene::new(states.to_vec())))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::world::state::cruising_car as car;
+
+    #[test]
+    fn a_preset_state_places_the_leaders_ahead_and_the_followers_behind_the_ego() {
+        let config =
+            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
+                .unwrap();
+        // x_c = 180: the ego 80 m before it at 100; "4" 10 m ahead (110), "1" three headways
+        // of 14 m further (152); "5" 10 m behind (90), "8" three headways further back (48).
+        let scene = Preset::One.scene(&config);
+        let xv: Vec<(f64, f64)> = scene.vehicles.iter().map(|v| (v.x, v.v)).collect();
+        assert_eq!(
+            xv,
+            vec![
+                (100.0, 12.0),
+                (152.0, 11.0),
+                (138.0, 11.0),
+                (124.0, 11.0),
+                (110.0, 11.0),
+                (90.0, 13.0),
+                (76.0, 13.0),
+                (62.0, 13.0),
+                (48.0, 13.0)
+            ]
+        );
+        assert!(scene.vehicles[0].on_ramp && scene.vehicles[1..].iter().all(|v| !v.on_ramp));
+    }
 
     #[test]
     fn the_ego_merged_between_its_nearest_target_lane_players() {
