@@ -22,7 +22,7 @@ use mpgdrive::engine::rollout::Recording;
 use mpgdrive::eval::study::{Rules, load_policies};
 use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::policy::network::PolicyNet;
-use mpgdrive::world::scenarios::{Preset, PresetState, merged_between_in};
+use mpgdrive::world::scenarios::{Preset, PresetState};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -103,7 +103,7 @@ fn holds(
         let scenes: Vec<_> = chunk.iter().map(|s| s.scene(config)).collect();
         let outcomes = policy_rollout(config, net, Others::SameNetwork, &scenes, 2, Recording::Full)?;
         for o in &outcomes {
-            let (Some(between), None) = (merged_between_in(o), o.collision) else {
+            let (Some(between), None) = (o.merged_between(), o.collision) else {
                 out.push((false, None));
                 continue;
             };

@@ -9,7 +9,7 @@ use mpgdrive::engine::rollout::Recording;
 use mpgdrive::eval::EpisodeMetrics;
 use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::render::episode::render_episode;
-use mpgdrive::world::scenarios::{Preset, merged_between_in};
+use mpgdrive::world::scenarios::Preset;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -53,7 +53,7 @@ pub fn scenario(
     let mut files = render_episode(out, &name, &title, config, &outcome)?;
     let metrics = EpisodeMetrics::of(&outcome);
     let dt = config.sim.dt;
-    let between = merged_between_in(&outcome);
+    let between = outcome.merged_between();
     let summary = format!(
         "{title}: {}; ego merged at {}, collision {}, mean speed {:.2} m/s, mean |u| {:.3} m/s^2",
         preset.description(),

@@ -2,6 +2,7 @@
 //! step-by-step trajectory.
 
 use crate::game::reward::TermValues;
+use crate::world::scenarios::merged_between;
 use crate::world::state::{Scene, Vehicle};
 
 /// A collision: the step after which the boxes overlap, and the two players.
@@ -121,5 +122,16 @@ impl EpisodeOutcome {
     /// The ego's statistics.
     pub fn ego(&self) -> &EgoStats {
         &self.vehicles[0]
+    }
+
+    /// The players the ego merged between ([`merged_between`] of the first state after it
+    /// passed the conflict point); `None` if it never merged or the episode was not recorded
+    /// in full.
+    pub fn merged_between(&self) -> Option<[usize; 2]> {
+        let m = self.ego_merged_at?;
+        let n = self.final_scene.len();
+        // Step m's action led to state m + 1.
+        let states = self.trajectory.as_ref()?.states.get((m + 1) * n..(m + 2) * n)?;
+        Some(merged_between(&Scene::new(states.to_vec())))
     }
 }

@@ -9,7 +9,6 @@
 //!   ego, so the gap closes quickly: the ego waits for "5" to pass, then merges behind it.
 
 use crate::config::Config;
-use crate::engine::outcome::EpisodeOutcome;
 use crate::world::geometry::Road;
 use crate::world::state::{Scene, Vehicle};
 
@@ -153,21 +152,6 @@ pub fn merged_between(scene: &Scene) -> [usize; 2] {
         .max_by(|a, b| a.1.x.total_cmp(&b.1.x))
         .map_or(0, |(i, _)| i);
     [front, back]
-}
-
-/// The players the ego of a fully recorded episode merged between ([`merged_between`] of the
-/// first state after it passed the conflict point); `None` if it never merged or the episode
-/// was not recorded.
-pub fn merged_between_in(outcome: &EpisodeOutcome) -> Option<[usize; 2]> {
-    let m = outcome.ego_merged_at?;
-    let n = outcome.final_scene.len();
-    // Step m's action led to state m + 1.
-    let states = outcome
-        .trajectory
-        .as_ref()?
-        .states
-        .get((m + 1) * n..(m + 2) * n)?;
-    Some(merged_between(&Scene::new(states.to_vec())))
 }
 
 #[cfg(test)]
