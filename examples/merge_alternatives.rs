@@ -1,0 +1,90 @@
+//! Is the learned merge the potential's best? For each of the paper's two scenarios and each
+//! policy seed, compares the discounted potential of the shared policy's own episode with the
+//! episodes in which the ego alone drives open loop, tracking a fixed speed until it merges
+//! (`u = v_track - v`, clipped to [-3, 2] m/s^2), while every other player keeps the policy.
+//!
+//! ```sh
+//! cargo run --release --example merge_alternatives -- [CONFIG] [POLICY_DIR]
+//! ```
+//! (defaults `configs/paper.toml` and `policies/mpg`). A collision-free alternative with a
+//! higher potential than the policy's episode is a better joint outcome that gradient play
+//! did not find from this state (Algorithm 1 ascends the potential). Deterministic.
+
+use mpgdrive::config::Config;
+use mpgdrive::engine::rollout::{Actor, Recording, RolloutOptions, rollout};
+use mpgdrive::eval::study::{Rules, load_policies};
+use mpgdrive::policy::network::PolicyNet;
+use mpgdrive::policy::observation::PolicyActor;
+use mpgdrive::world::drivers::Driver;
+use mpgdrive::world::neighbors::Neighbors;
+use mpgdrive::world::scenarios::Preset;
+use mpgdrive::world::state::Scene;
+use std::path::Path;
+use std::sync::Mutex;
+
+/// Speeds the open-loop ego tracks (m/s); `None` is the policy's own episode.
+const TRACKED: [Option<f64>; 5] = [None, Some(12.0), Some(14.0), Some(15.0), Some(17.0)];
+
+/// Every player on the shared policy, the ego replaced by a speed tracker while on the ramp.
+struct EgoTracks {
+    policy: PolicyActor<PolicyNet>,
+    speed: Option<f64>,
+}
+
+impl Actor for EgoTracks {
+    fn act(&mut self, step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]) {
+        self.policy.act(step, scenes, neighbors, out);
+        let n = scenes.first().map_or(0, Scene::len);
+        for (b, scene) in scenes.iter().enumerate() {
+            let ego = scene.ego();
+            if let (Some(v), true) = (self.speed, ego.on_ramp) {
+                out[b * n] = (v - ego.v).clamp(-3.0, 2.0);
+            }
+        }
+    }
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().collect();
+    let config_path = args.get(1).map_or("configs/paper.toml", String::as_str);
+    let policies = args.get(2).map_or("policies/mpg", String::as_str);
+    let config = Config::load(Path::new(config_path))?;
+    let nets = load_policies(Path::new(policies), &config, Rules::Any)?;
+    let opts = RolloutOptions {
+        threads: 1,
+        recording: Recording::Full,
+        ..RolloutOptions::from_config(&config)
+    };
+    println!("scenario | seed | ego drives | potential | ego's return | merged between | collision");
+    for preset in [Preset::One, Preset::Two] {
+        let scene = preset.scene(&config);
+        for (net, side) in &nets {
+            let seed = side.seed;
+            for speed in TRACKED {
+                let cell = Mutex::new(Some(net.try_clone()?));
+                let outcome = rollout(&config, &opts, std::slice::from_ref(&scene), || EgoTracks {
+                    policy: PolicyActor::new(
+                        &config,
+                        cell.lock().expect("lock").take().expect("one actor"),
+                        Driver::Idm,
+                        true,
+                    ),
+                    speed,
+                })
+                .remove(0);
+                let between = outcome
+                    .merged_between()
+                    .map_or("never".into(), |[a, b]| format!("{a} and {b}"));
+                println!(
+                    "{} | {seed} | {} | {:.0} | {:.0} | {between} | {}",
+                    preset.number(),
+                    speed.map_or("the policy".into(), |v| format!("tracks {v} m/s")),
+                    outcome.potential_return,
+                    outcome.returns[0],
+                    if outcome.collision.is_some() { "yes" } else { "no" }
+                );
+            }
+        }
+    }
+    Ok(())
+}
