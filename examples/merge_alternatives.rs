@@ -44,12 +44,12 @@ impl Actor for EgoTracks {
     }
 }
 
-fn main() -> Result<(), Box<dyn std::error::Error>> {
+fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let config_path = args.get(1).map_or("configs/paper.toml", String::as_str);
     let policies = args.get(2).map_or("policies/mpg", String::as_str);
     let config = Config::load(Path::new(config_path))?;
-    let nets = load_policies(Path::new(policies), &config, Rules::Any)?;
+    let nets = load_policies(Path::new(policies), &config, Rules::Same)?;
     let opts = RolloutOptions {
         threads: 1,
         recording: Recording::Full,
