@@ -4,11 +4,15 @@
 //! (`u = v_track - v`, clipped to [-3, 2] m/s^2), while every other player keeps the policy.
 //!
 //! ```sh
-//! cargo run --release --example merge_alternatives -- [CONFIG] [POLICY_DIR]
+//! cargo run --release --example merge_alternatives -- [CONFIG] [POLICY_DIR] [STATE]
 //! ```
-//! (defaults `configs/paper.toml` and `policies/mpg`). A collision-free alternative with a
-//! higher potential than the policy's episode is a better joint outcome that gradient play
-//! did not find from this state (Algorithm 1 ascends the potential). Deterministic.
+//! (defaults `configs/paper.toml` and `policies/mpg`). `STATE`, seven numbers, replaces the
+//! two presets by one state of their pattern (`world::scenarios::PresetState`: the ego's
+//! distance to x_c and speed, the gaps to "4" and "5", the leaders' and the followers' speed,
+//! the headway). A collision-free alternative with a higher potential than the policy's episode
+//! is a better joint outcome that gradient play did not find from this state (Algorithm 1
+//! ascends the potential). Last, whom each seed's ego merges between in its first 300 test
+//! episodes (`eval`'s states). Deterministic.
 
 use mpgdrive::config::Config;
 use mpgdrive::engine::rollout::{Actor, Recording, RolloutOptions, rollout};
@@ -17,13 +21,28 @@ use mpgdrive::policy::network::PolicyNet;
 use mpgdrive::policy::observation::PolicyActor;
 use mpgdrive::world::drivers::Driver;
 use mpgdrive::world::neighbors::Neighbors;
-use mpgdrive::world::scenarios::Preset;
+use mpgdrive::policy::drive::{Others, policy_rollout};
+use mpgdrive::world::sampler::{Purpose, purpose_seed, sample_scenes};
+use mpgdrive::world::scenarios::{Preset, PresetState};
+use std::collections::BTreeMap;
 use mpgdrive::world::state::Scene;
 use std::path::Path;
 use std::sync::Mutex;
 
 /// Speeds the open-loop ego tracks (m/s); `None` is the policy's own episode.
-const TRACKED: [Option<f64>; 5] = [None, Some(12.0), Some(14.0), Some(15.0), Some(17.0)];
+const TRACKED: [Option<f64>; 8] = [
+    None,
+    Some(9.0),
+    Some(10.0),
+    Some(11.0),
+    Some(12.0),
+    Some(14.0),
+    Some(15.0),
+    Some(17.0),
+];
+
+/// Test episodes per seed whose merge order is counted.
+const TEST_EPISODES: usize = 300;
 
 /// Every player on the shared policy, the ego replaced by a speed tracker while on the ramp.
 struct EgoTracks {
@@ -56,13 +75,31 @@ fn main() -> anyhow::Result<()> {
         ..RolloutOptions::from_config(&config)
     };
     println!("scenario | seed | ego drives | potential | ego's return | merged between | collision");
-    for preset in [Preset::One, Preset::Two] {
-        let scene = preset.scene(&config);
+    let scenes: Vec<(String, Scene)> = match args.get(3..) {
+        Some(v) if !v.is_empty() => {
+            let v: Vec<f64> = v.iter().map(|a| a.parse()).collect::<Result<_, _>>()?;
+            anyhow::ensure!(v.len() == 7, "STATE is seven numbers, got {}", v.len());
+            let state = PresetState {
+                ego_before: v[0],
+                ego_speed: v[1],
+                gap_ahead: v[2],
+                gap_behind: v[3],
+                leader_speed: v[4],
+                follower_speed: v[5],
+                headway: v[6],
+            };
+            vec![("state".into(), state.scene(&config))]
+        }
+        _ => [Preset::One, Preset::Two]
+            .map(|p| (p.number().to_string(), p.scene(&config)))
+            .into(),
+    };
+    for (name, scene) in &scenes {
         for (net, side) in &nets {
             let seed = side.seed;
             for speed in TRACKED {
                 let cell = Mutex::new(Some(net.try_clone()?));
-                let outcome = rollout(&config, &opts, std::slice::from_ref(&scene), || EgoTracks {
+                let outcome = rollout(&config, &opts, std::slice::from_ref(scene), || EgoTracks {
                     policy: PolicyActor::new(
                         &config,
                         cell.lock().expect("lock").take().expect("one actor"),
@@ -76,8 +113,7 @@ fn main() -> anyhow::Result<()> {
                     .merged_between()
                     .map_or("never".into(), |[a, b]| format!("{a} and {b}"));
                 println!(
-                    "{} | {seed} | {} | {:.0} | {:.0} | {between} | {}",
-                    preset.number(),
+                    "{name} | {seed} | {} | {:.0} | {:.0} | {between} | {}",
                     speed.map_or("the policy".into(), |v| format!("tracks {v} m/s")),
                     outcome.potential_return,
                     outcome.returns[0],
@@ -85,6 +121,16 @@ fn main() -> anyhow::Result<()> {
                 );
             }
         }
+    }
+    for (net, side) in &nets {
+        let tests = sample_scenes(&config, purpose_seed(side.seed, Purpose::Test), 0, TEST_EPISODES);
+        let outcomes = policy_rollout(&config, net, Others::SameNetwork, &tests, 2, Recording::Full)?;
+        let mut merged: BTreeMap<String, usize> = BTreeMap::new();
+        for o in &outcomes {
+            let key = o.merged_between().map_or("never".into(), |[a, b]| format!("{a} and {b}"));
+            *merged.entry(key).or_default() += 1;
+        }
+        println!("seed {}, {TEST_EPISODES} test episodes, merged between: {merged:?}", side.seed);
     }
     Ok(())
 }

@@ -55,11 +55,17 @@ pub struct ScenarioConfig {
     #[serde(default)]
     pub kind: ScenarioKind,
     /// Ramp vehicles change to the target lane at the first step the lane change is safe
-    /// ([`crate::world::merge_gate::lane_change_is_safe`]) within this distance before `x_c`,
-    /// and at `x_c` at the latest (m; ours).
+    /// ([`crate::world::merge_gate::lane_change_is_safe`]) from this distance before `x_c` on,
+    /// and at the ramp's end (`x_c`, or the acceleration lane's end) at the latest (m; ours).
     /// Default 0: at `x_c` only, as the paper.
     #[serde(default)]
     pub merge_zone: f64,
+    /// The ramp goes on this far past `x_c` as an acceleration lane (m; ours): a ramp vehicle
+    /// without a safe gap by `x_c` stays on it, changes lanes at the first safe gap, and joins
+    /// the target lane at its end at the latest (where the merge gate, when on, holds it).
+    /// Default 0: the ramp ends at `x_c`, as the paper.
+    #[serde(default)]
+    pub accel_lane: f64,
 }
 
 /// The world an episode starts in.
@@ -176,6 +182,22 @@ pub struct RewardConfig {
     pub w_ttc: f64,
     /// Weight `omega_22` of the different-lane time-gap-to-conflict-point term (eq. 28).
     pub w_conflict: f64,
+    /// Weight `omega_{i,11}` of speed tracking for a vehicle on the ramp (ours; default
+    /// `w_speed`). The paper's weights may differ per vehicle `i`; a self term weighted by the
+    /// vehicle's own lane is still a function of its own state, so the game stays an MPG.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub w_speed_ramp: Option<f64>,
+    /// A different-lane pair's conflict term ends once either vehicle has passed `x_c` (ours;
+    /// default false: the paper's `T = |x - x_c| / (v + eps)` on both sides of `x_c`).
+    #[serde(default)]
+    pub conflict_ends_at_x_c: bool,
+}
+
+impl RewardConfig {
+    /// The speed-tracking weight of a vehicle on the ramp (`w_speed_ramp`, else `w_speed`).
+    pub fn speed_weight_on_ramp(&self) -> f64 {
+        self.w_speed_ramp.unwrap_or(self.w_speed)
+    }
 }
 
 /// Intelligent Driver Model parameters (Treiber, Hennecke and Helbing 2000).
@@ -367,10 +389,13 @@ impl Config {
 
     /// This configuration at another conflict point: a network's or a dataset's `x_c`, whose
     /// file validated it. The one way the world's geometry enters a configuration (the SUMO
-    /// controller, the NGSIM replay and the synthetic NGSIM files).
+    /// controller, the NGSIM replay and the synthetic NGSIM files). The training road's
+    /// acceleration lane (`scenario.accel_lane`) goes with it: there the network's or the
+    /// data's own lanes say where the ramp ends.
     pub fn at_conflict_point(&self, conflict_point: f64) -> Config {
         let mut c = self.clone();
         c.scenario.conflict_point = conflict_point;
+        c.scenario.accel_lane = 0.0;
         c
     }
 
@@ -399,6 +424,7 @@ impl Config {
         positive("scenario.road_length", s.road_length)?;
         positive("scenario.lane_width", s.lane_width)?;
         non_negative("scenario.merge_zone", s.merge_zone)?;
+        non_negative("scenario.accel_lane", s.accel_lane)?;
         finite("scenario.conflict_point", s.conflict_point)?;
         check(
             "scenario.conflict_point",
@@ -459,6 +485,7 @@ impl Config {
             ("reward.w_comfort", r.w_comfort),
             ("reward.w_ttc", r.w_ttc),
             ("reward.w_conflict", r.w_conflict),
+            ("reward.w_speed_ramp", r.speed_weight_on_ramp()),
         ] {
             non_negative(key, w)?;
         }

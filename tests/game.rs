@@ -5,7 +5,9 @@ mod common;
 use approx::assert_abs_diff_eq;
 use common::{car, scene, smoke};
 use mpgdrive::eval::mpg_check::{CheckSettings, check_mpg};
-use mpgdrive::game::terms::{comfort, conflict_time_gap, same_lane_ttc, speed_tracking};
+use mpgdrive::game::terms::{
+    comfort, conflict_time_gap, conflict_time_gap_before, same_lane_ttc, speed_tracking,
+};
 use mpgdrive::game::{PairReward, PairTerms, PaperReward, StepRewards};
 use mpgdrive::world::sampler::sample_scene;
 use mpgdrive::world::state::Vehicle;
@@ -51,6 +53,29 @@ fn conflict_time_gap_term_eq_28() {
         conflict_time_gap(&170.0, &10.0, &160.0, &20.1, 180.0, 0.1),
         -10.0,
         epsilon = 1e-9
+    );
+}
+
+#[test]
+fn the_conflict_term_can_end_at_the_conflict_point() {
+    // Both before x_c: eq. (28) as above.
+    let r = conflict_time_gap_before(&150.0, &10.0, &160.0, &15.0, 180.0, 0.1);
+    assert_abs_diff_eq!(r, -0.182_731_493_509_931_56, epsilon = 1e-12);
+    // The target-lane car 10 m past x_c at 10.1 m/s and the ramp vehicle 10 m before it at
+    // 10.1 m/s: the paper's |x - x_c| gives both T = 10 / 10.2 s, the largest penalty -1 / eps;
+    // ended at x_c, 0 (either order of the pair).
+    assert_abs_diff_eq!(
+        conflict_time_gap(&170.0, &10.1, &190.0, &10.1, 180.0, 0.1),
+        -10.0,
+        epsilon = 1e-9
+    );
+    assert_eq!(
+        conflict_time_gap_before(&170.0, &10.1, &190.0, &10.1, 180.0, 0.1),
+        0.0
+    );
+    assert_eq!(
+        conflict_time_gap_before(&190.0, &10.1, &170.0, &10.1, 180.0, 0.1),
+        0.0
     );
 }
 
@@ -223,6 +248,40 @@ fn check_mpg_passes_merge_traffic_in_the_theorem_setting() {
     assert_eq!(report.players.len(), 13);
     assert!(report.max_relative_gap < 1e-9, "gap {}", report.max_relative_gap);
     assert!(report.players.iter().all(|p| p.min_abs_delta_j > 1e-6));
+}
+
+#[test]
+fn a_ramp_speed_weight_weighs_a_ramp_vehicles_speed_term_alone() {
+    // A ramp vehicle at 10 m/s and a target-lane vehicle at 12 m/s, v_d = 15: raising the
+    // ramp weight from w_speed = 1 to 3 adds 2 * -(10 - 15)^2 = -50 to the ramp vehicle's
+    // reward and to the potential; the target-lane vehicle's reward does not move.
+    let mut config = common::traffic();
+    let vehicles = [car(150.0, 10.0, true), car(170.0, 12.0, false)];
+    let u = [0.5, -1.0];
+    let step = |config: &mpgdrive::config::Config| {
+        let reward = PaperReward::new(config);
+        let mut out = StepRewards::default();
+        out.compute(&reward, &reward, &vehicles, &u, &[]);
+        out
+    };
+    let one = step(&config);
+    config.reward.w_speed_ramp = Some(3.0);
+    let three = step(&config);
+    assert_abs_diff_eq!(three.reward[0] - one.reward[0], -50.0, epsilon = 1e-12);
+    assert_eq!(three.reward[1], one.reward[1]);
+    assert_abs_diff_eq!(three.potential - one.potential, -50.0, epsilon = 1e-12);
+}
+
+#[test]
+fn check_mpg_passes_merge_traffic_with_the_reward_options() {
+    // The ramp weight follows each vehicle's own lane: still a self term (Theorem 1); the
+    // conflict term that ends at x_c is still symmetric (Theorem 2).
+    let mut config = common::traffic();
+    config.sim.horizon = 10.0;
+    config.reward.w_speed_ramp = Some(3.0);
+    config.reward.conflict_ends_at_x_c = true;
+    let report = check_mpg(&config, &settings(true), &PaperReward::new(&config), &mut || {});
+    assert!(report.max_relative_gap < 1e-9, "gap {}", report.max_relative_gap);
 }
 
 #[test]

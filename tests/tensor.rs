@@ -108,6 +108,21 @@ fn engines_agree_in_the_theorem_setting() {
 }
 
 #[test]
+fn engines_agree_with_the_reward_options() {
+    // The ego's speed term weighted by its lane (3 on the ramp, 1 in the target lane), and
+    // the conflict term ending at x_c.
+    let mut config = ungated();
+    config.reward.w_speed_ramp = Some(3.0);
+    assert!(compare(&config, Driver::Idm, Driver::Idm, true, true) > 0);
+    config.reward.conflict_ends_at_x_c = true;
+    assert!(compare(&config, Driver::Idm, Driver::Idm, true, true) > 0);
+    let mut traffic = common::traffic();
+    traffic.reward.w_speed_ramp = Some(2.0);
+    traffic.reward.conflict_ends_at_x_c = true;
+    traffic_engines_agree(&traffic);
+}
+
+#[test]
 fn potential_gradient_matches_finite_differences() {
     // d Phi / d theta for a common acceleration offset theta added to every IDM action.
     let config = paper();
@@ -214,27 +229,49 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
 fn engines_agree_in_merge_traffic_with_human_drivers() {
     // Traffic episodes (3 ramp vehicles, 10 in the target lane, IDM humans merging by the
     // gate) with a speed-keeping linear policy for the players: same returns and potential.
+    traffic_engines_agree(&common::traffic());
+}
+
+#[test]
+fn engines_agree_in_merge_traffic_with_an_acceleration_lane() {
+    // The same with the ramp going on 40 m past x_c: ramp vehicles without a gap stay on it
+    // past x_c (the speed-keeping players leave some there), in both engines alike.
+    let mut config = common::traffic();
+    config.scenario.accel_lane = 40.0;
+    let x_c = config.scenario.conflict_point;
+    let past = traffic_engines_agree(&config);
+    assert!(past > 0, "no ramp vehicle stayed on the acceleration lane");
+    // Without the lane none can be past x_c on the ramp.
+    config.scenario.accel_lane = 0.0;
+    assert_eq!(traffic_engines_agree(&config), 0, "x_c = {x_c}");
+}
+
+/// Runs traffic episodes (a speed-keeping linear policy for the players, IDM humans) in both
+/// engines, checks their potentials agree and returns how many steps a ramp vehicle spent
+/// past `x_c` still on the ramp (scalar engine).
+fn traffic_engines_agree(config: &Config) -> usize {
+    use mpgdrive::engine::rollout::Recording;
     use mpgdrive::policy::observation::{Frame, Layout, observation_rows, tensor_features};
     use mpgdrive::policy::{LinearPolicy, PolicyActor};
-    let config = common::traffic();
-    let scenes = sample_scenes(&config, 3, 0, 16);
+    let scenes = sample_scenes(config, 3, 0, 16);
     assert!(scenes.iter().any(|s| s.humans.contains(&true)));
     let steps = 150;
     let opts = RolloutOptions {
         steps,
         threads: 2,
-        ..RolloutOptions::from_config(&config)
+        recording: Recording::Full,
+        ..RolloutOptions::from_config(config)
     };
-    let linear = LinearPolicy::speed_keeping(&config);
-    let scalar = rollout(&config, &opts, &scenes, || {
-        PolicyActor::new(&config, linear.clone(), Driver::Idm, true)
+    let linear = LinearPolicy::speed_keeping(config);
+    let scalar = rollout(config, &opts, &scenes, || {
+        PolicyActor::new(config, linear.clone(), Driver::Idm, true)
     });
     let t = tensor::rollout(
-        &config,
+        config,
         &scenes,
         &double(steps, true, true, tensor::Learning::All),
         |b, nb, _| {
-            let features = tensor_features(Layout::Traffic, Frame::of(&config), b, nb);
+            let features = tensor_features(Layout::Traffic, Frame::of(config), b, nb);
             let obs = observation_rows(Layout::Traffic, &features);
             let actions = obs
                 .chunks(linear.weights.len())
@@ -257,4 +294,10 @@ fn engines_agree_in_merge_traffic_with_human_drivers() {
             potential[k]
         );
     }
+    let x_c = config.scenario.conflict_point;
+    scalar
+        .iter()
+        .flat_map(|o| &o.trajectory.as_ref().expect("recorded").states)
+        .filter(|v| v.on_ramp && v.x >= x_c)
+        .count()
 }

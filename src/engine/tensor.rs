@@ -325,20 +325,40 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     let x_c = config.scenario.conflict_point;
     // A scene's own desired speed comes with its weight factor (`speed_weight`).
     let v_d = batch.per_scene(|d| d.unwrap_or(r.v_desired));
-    let weight = batch.per_scene(|d| r.w_speed * d.map_or(1.0, |d| speed_weight(r.v_desired, d)));
+    // Each vehicle's weight by its lane (`w_speed_ramp` on the ramp): one per-scene factor
+    // times the lane's weight; with one weight for both lanes, the weight per scene.
+    let w_ramp = r.speed_weight_on_ramp();
+    let (w, lanes) = if w_ramp == r.w_speed {
+        (r.w_speed, None)
+    } else {
+        (
+            1.0,
+            Some(batch.on_ramp.mul_c(w_ramp - r.w_speed).add_c(r.w_speed)),
+        )
+    };
+    let weight = batch.per_scene(|d| w * d.map_or(1.0, |d| speed_weight(r.v_desired, d)));
     let speed = match (v_d, weight) {
         (Some(v_d), Some(weight)) => terms::speed_tracking_towards(&batch.v, &v_d).mul(&weight),
-        _ => terms::speed_tracking(&batch.v, r.v_desired).mul_c(r.w_speed),
+        _ => terms::speed_tracking(&batch.v, r.v_desired).mul_c(w),
+    };
+    let speed = match lanes {
+        Some(lanes) => speed.mul(&lanes),
+        None => speed,
     };
     let own = speed.add(&terms::comfort(u).mul_c(r.w_comfort));
     let same_lane = pairs.of_ends(&batch.on_ramp, |a, b| f64::from(u8::from(a == b)));
     let np = pairs.both.len();
+    let conflict = if r.conflict_ends_at_x_c {
+        terms::conflict_time_gap_before
+    } else {
+        terms::conflict_time_gap
+    };
     // Each pair's term in one pass over the pairs (the generic terms on dual numbers).
     let pair = Var::pairwise(&batch.x, &batch.v, &pairs.both, |row, p, [xi, vi, xj, vj]| {
         if same_lane[row * np + p] > 0.5 {
             terms::same_lane_ttc(&xi, &vi, &xj, &vj, r.v_c, r.epsilon).mul_c(r.w_ttc)
         } else {
-            terms::conflict_time_gap(&xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict)
+            conflict(&xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict)
         }
     });
     let reward = own.add(&pair.pair_sums(&pairs.both, pairs.n));
@@ -357,7 +377,7 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     (reward, potential)
 }
 
-/// Eq. (1) with zero steering, then the merge: a ramp player reaching `x_c`, or merging early
+/// Eq. (1) with zero steering, then the merge: a ramp player reaching the ramp's end, or merging early
 /// ([`WorldRules::merges_early`], on the scenes as they were this step), joins the target
 /// lane.
 pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Var) -> TensorBatch {
@@ -369,7 +389,7 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Var) -> TensorBatch 
     };
     let straight = batch.phi.values().iter().all(|&phi| phi == 0.0);
     let next = zero_steering_step(&k, u, straight, rules.axles, rules.dt);
-    let conflict = rules.conflict_point();
+    let ramp_end = rules.road.ramp_end();
     let scenes = batch.scenes();
     let on_ramp: Vec<f64> = batch
         .on_ramp
@@ -379,8 +399,8 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Var) -> TensorBatch 
         .enumerate()
         .map(|(k, (&ramp, &x))| {
             let (b, i) = (k / batch.x.cols(), k % batch.x.cols());
-            let early = rules.road.merge_zone > 0.0 && rules.merges_early(&scenes[b], i);
-            f64::from(u8::from(ramp > 0.5 && conflict > x && !early))
+            let early = rules.merges_early(&scenes[b], i);
+            f64::from(u8::from(ramp > 0.5 && ramp_end > x && !early))
         })
         .collect();
     let on_ramp = Var::constant(on_ramp, batch.x.rows(), batch.x.cols());

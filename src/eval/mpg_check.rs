@@ -193,6 +193,7 @@ pub fn check_mpg(
         // An early merge waits for a safe gap: a lane change that depends on the neighbours,
         // as the projection does.
         config.scenario.merge_zone = 0.0;
+        config.scenario.accel_lane = 0.0;
     }
     let config = &config;
     let n = config.n_agents();

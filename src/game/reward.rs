@@ -1,10 +1,14 @@
 //! Per-agent rewards and the potential (Theorem 3).
 //!
 //! ```text
-//! r_i = w_speed s1_i + w_comfort s2_i + sum_{j != i} r_ij
+//! r_i = w_speed_i s1_i + w_comfort s2_i + sum_{j != i} r_ij
 //! r_ij = w_ttc [same lane] ttc_ij + w_conflict [different lanes] gap_ij
-//! phi  = sum_i (w_speed s1_i + w_comfort s2_i) + sum_i sum_{j < i} r_ij
+//! phi  = sum_i (w_speed_i s1_i + w_comfort s2_i) + sum_i sum_{j < i} r_ij
 //! ```
+//!
+//! `w_speed_i` is `w_speed_ramp` while vehicle `i` is on the ramp and `w_speed` in the target
+//! lane (the paper's `omega_{i,11}`, per vehicle): a function of the vehicle's own state, so its
+//! speed term stays a self term of Theorem 1.
 //!
 //! Each term is also logged unweighted per agent ([`TermValues`]); pair terms are logged as the
 //! sum over the agent's partners.
@@ -71,6 +75,10 @@ pub struct PaperReward {
     pub conflict_point: f64,
     /// Weights `(w_speed, w_comfort, w_ttc, w_conflict)`.
     pub weights: [f64; 4],
+    /// Speed-tracking weight of a vehicle on the ramp.
+    pub w_speed_ramp: f64,
+    /// The conflict term ends once either vehicle has passed `x_c`.
+    pub conflict_ends_at_x_c: bool,
 }
 
 impl PaperReward {
@@ -83,6 +91,8 @@ impl PaperReward {
             epsilon: r.epsilon,
             conflict_point: config.scenario.conflict_point,
             weights: [r.w_speed, r.w_comfort, r.w_ttc, r.w_conflict],
+            w_speed_ramp: r.speed_weight_on_ramp(),
+            conflict_ends_at_x_c: r.conflict_ends_at_x_c,
         }
     }
 
@@ -93,11 +103,22 @@ impl PaperReward {
             return *self;
         };
         let mut weights = self.weights;
-        weights[0] *= speed_weight(self.v_desired, v_d);
+        let factor = speed_weight(self.v_desired, v_d);
+        weights[0] *= factor;
         PaperReward {
             v_desired: v_d,
             weights,
+            w_speed_ramp: self.w_speed_ramp * factor,
             ..*self
+        }
+    }
+
+    /// The speed-tracking weight of vehicle `v`: by the lane it is in.
+    pub fn speed_weight_of(&self, v: &Vehicle) -> f64 {
+        if v.on_ramp {
+            self.w_speed_ramp
+        } else {
+            self.weights[0]
         }
     }
 
@@ -118,8 +139,12 @@ impl PairReward for PaperReward {
                 conflict: 0.0,
             }
         } else {
-            let conflict =
-                terms::conflict_time_gap(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
+            let term = if self.conflict_ends_at_x_c {
+                terms::conflict_time_gap_before
+            } else {
+                terms::conflict_time_gap
+            };
+            let conflict = term(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
             PairTerms {
                 reward: w_conflict * conflict,
                 ttc: 0.0,
@@ -166,13 +191,13 @@ impl StepRewards {
     ) {
         let human = |i: usize| humans.get(i).copied().unwrap_or(false);
         let n = vehicles.len();
-        let [w_speed, w_comfort, _, _] = base.weights;
+        let w_comfort = base.weights[1];
         self.reward.clear();
         self.terms.clear();
         self.potential = 0.0;
         for (i, (veh, &u)) in vehicles.iter().zip(actions).enumerate() {
             let (speed, comfort) = base.self_terms(veh, u);
-            let r = w_speed * speed + w_comfort * comfort;
+            let r = base.speed_weight_of(veh) * speed + w_comfort * comfort;
             self.reward.push(r);
             self.terms.push(TermValues {
                 speed,

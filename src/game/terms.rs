@@ -56,3 +56,16 @@ pub fn conflict_time_gap<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, e
         .recip()
         .neg()
 }
+
+/// [`conflict_time_gap`] while both vehicles are before the conflict point, 0 once either has
+/// passed it (`reward.conflict_ends_at_x_c`, ours): a vehicle past `x_c` has no conflict there to
+/// come, while `|x - x_c|` has its time grow again, so a ramp vehicle still before `x_c` met
+/// each target-lane vehicle that had passed once more, at `T_i = T_j`. Still symmetric.
+pub fn conflict_time_gap_before<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
+    let passed = x_i.max(x_j).gt_c(x_c);
+    T::select(
+        &passed,
+        &x_i.full(0.0),
+        &conflict_time_gap(x_i, v_i, x_j, v_j, x_c, eps),
+    )
+}

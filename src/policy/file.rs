@@ -141,6 +141,11 @@ pub fn reward_difference(sidecar: &Sidecar, run: &Config) -> Option<String> {
             ("reward.w_comfort", r.w_comfort),
             ("reward.w_ttc", r.w_ttc),
             ("reward.w_conflict", r.w_conflict),
+            ("reward.w_speed_ramp", r.speed_weight_on_ramp()),
+            (
+                "reward.conflict_ends_at_x_c",
+                f64::from(u8::from(r.conflict_ends_at_x_c)),
+            ),
         ]
     };
     first_difference(&terms(&sidecar.config), &terms(run))

@@ -1,9 +1,10 @@
 //! Road geometry and vehicle bounding boxes.
 //!
 //! The target lane's centre line is `y = 0`; the ramp's is one lane width to its right
-//! (`y = -lane_width`). The ramp joins the target lane at the conflict point `x_c`: a ramp
-//! vehicle is moved onto the target-lane centre line when its `x` reaches `x_c` (longitudinal
-//! control, the lane geometry gives the lateral position).
+//! (`y = -lane_width`). The ramp joins the target lane at the conflict point `x_c`, or at the
+//! end of an acceleration lane past it (`scenario.accel_lane`): a ramp vehicle is moved onto
+//! the target-lane centre line when its `x` reaches the ramp's end (longitudinal control, the
+//! lane geometry gives the lateral position).
 
 use crate::config::Config;
 use nalgebra::{Rotation2, Vector2};
@@ -17,6 +18,8 @@ pub struct Road {
     pub lane_width: f64,
     /// How far before `x_c` a ramp vehicle may join the target lane at a safe gap (m).
     pub merge_zone: f64,
+    /// How far the ramp goes on past `x_c` as an acceleration lane (m).
+    pub accel_lane: f64,
 }
 
 impl Road {
@@ -26,13 +29,19 @@ impl Road {
             conflict_point: config.scenario.conflict_point,
             lane_width: config.scenario.lane_width,
             merge_zone: config.scenario.merge_zone,
+            accel_lane: config.scenario.accel_lane,
         }
     }
 
-    /// Whether a ramp vehicle at `x` is inside the merge zone, where it joins the target lane
-    /// at the first safe gap.
+    /// Whether a ramp vehicle at `x` is where it joins the target lane at the first safe gap:
+    /// from the merge zone's start before `x_c` to the acceleration lane's end.
     pub fn in_merge_zone(&self, x: f64) -> bool {
-        self.merge_zone > 0.0 && x >= self.conflict_point - self.merge_zone
+        self.merge_zone + self.accel_lane > 0.0 && x >= self.conflict_point - self.merge_zone
+    }
+
+    /// Where the ramp ends (m): `x_c` plus the acceleration lane.
+    pub fn ramp_end(&self) -> f64 {
+        self.conflict_point + self.accel_lane
     }
 
     /// Lateral position of a lane's centre line.
@@ -42,7 +51,7 @@ impl Road {
 
     /// Whether a vehicle at `x` that was on the ramp is still on it.
     pub fn still_on_ramp(&self, was_on_ramp: bool, x: f64) -> bool {
-        was_on_ramp && x < self.conflict_point
+        was_on_ramp && x < self.ramp_end()
     }
 }
 

@@ -6,7 +6,9 @@
 //! (most ego collisions of early trained policies were such slow entries; CHANGELOG.md,
 //! "Design notes"). The gate extends Section
 //! V-ii's feasibility to the ramp: an action is feasible for a ramp vehicle when the vehicle
-//! can still stop before `x_c` braking at up to `g`, unless entering is safe.
+//! can still stop before `x_c` braking at up to `g`, unless entering is safe. With an
+//! acceleration lane (`scenario.accel_lane`) the ramp, and so the stop line, ends that far past
+//! `x_c`; "`x_c`" below then reads as the lane's end.
 //!
 //! **Safe entry** ([`entry_is_safe`]): the gate only binds at the last step the vehicle can
 //! still stop, so what it must make safe is the crossing of a vehicle that commits now. That
@@ -51,7 +53,7 @@ pub const STOP_MARGIN: f64 = 0.1;
 /// What the gate needs from the configuration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GateRules {
-    /// Conflict point `x_c` (m).
+    /// The stop line's reference: where the ramp ends, `x_c` plus the acceleration lane (m).
     pub conflict_point: f64,
     /// Gap subtracted from centre distances: vehicle length plus the safety gap (m).
     pub clearance: f64,
@@ -69,7 +71,7 @@ impl GateRules {
     /// The configuration's rules.
     pub fn new(config: &Config) -> Self {
         GateRules {
-            conflict_point: config.scenario.conflict_point,
+            conflict_point: config.scenario.conflict_point + config.scenario.accel_lane,
             clearance: config.vehicle.length + config.sim.safety_gap,
             b_safe: config.sim.b_safe,
             horizon: config.sim.tau_s,

@@ -106,4 +106,42 @@ mod tests {
         let far = Scene::new(vec![at(160.0, 12.0, true), at(100.0, 12.0, false)]);
         assert!(rules.merges_early(&far, 0));
     }
+
+    #[test]
+    fn an_acceleration_lane_keeps_ramp_vehicles_past_x_c_until_a_gap_or_its_end() {
+        use crate::world::merge_gate::{gate_holds, stop_bound};
+        use crate::world::step::advance;
+        let mut config =
+            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
+                .unwrap();
+        (config.scenario.merge_zone, config.scenario.accel_lane) = (40.0, 40.0);
+        config.sim.merge_gate = true;
+        let rules = WorldRules::new(&config);
+        assert_eq!(rules.road.ramp_end(), 220.0);
+        // A network's or a dataset's geometry replaces the training road's lane.
+        assert_eq!(
+            WorldRules::new(&config.at_conflict_point(150.0)).road.ramp_end(),
+            150.0
+        );
+        // 10 m past x_c = 180 with a car beside it: no lane change, and it stays on the
+        // ramp (y = -3.66) after the step; with the lane free it changes now.
+        let beside = Scene::new(vec![at(190.0, 10.0, true), at(192.0, 10.0, false)]);
+        assert!(!rules.merges_early(&beside, 0));
+        let next = advance(&beside.vehicles[0], 0.0, false, &rules);
+        assert!(next.on_ramp && next.y == -3.66 && (next.x - 191.0).abs() < 1e-12);
+        assert!(rules.merges_early(&Scene::new(vec![at(190.0, 10.0, true)]), 0));
+        // At its end (x 219.5 + 1 m this step) it joins the target lane whatever the gaps.
+        assert!(!advance(&at(219.5, 10.0, true), 0.0, false, &rules).on_ramp);
+        // The gate's stop line is the lane's end less 0.1 m: from x = 212 at 10 m/s the step
+        // leaves 219.9 - 213 = 6.9 m, so v' = -g dt + sqrt((g dt)^2 + 2 g 6.9) = 10.695 m/s
+        // and the bound is (v' - 10) / dt = 6.955 m/s^2; the car beside holds it.
+        let bound = stop_bound(&212.0, &10.0, &rules.gate);
+        assert!((bound - 6.954_875).abs() < 1e-5, "{bound}");
+        let held = Scene::new(vec![at(212.0, 10.0, true), at(212.0, 10.0, false)]);
+        assert!(gate_holds(&held, 0, &rules.gate));
+        // Without the lane the same vehicle is past the line: no room, full braking.
+        config.scenario.accel_lane = 0.0;
+        let bound = stop_bound(&212.0, &10.0, &WorldRules::new(&config).gate);
+        assert!((bound + 100.0).abs() < 1e-9, "{bound}");
+    }
 }
