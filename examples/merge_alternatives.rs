@@ -15,17 +15,18 @@
 //! episodes (`eval`'s states). Deterministic.
 
 use mpgdrive::config::Config;
+use mpgdrive::engine::outcome::EpisodeOutcome;
 use mpgdrive::engine::rollout::{Actor, Recording, RolloutOptions, rollout};
 use mpgdrive::eval::study::{Rules, load_policies};
+use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::policy::network::PolicyNet;
 use mpgdrive::policy::observation::PolicyActor;
 use mpgdrive::world::drivers::Driver;
 use mpgdrive::world::neighbors::Neighbors;
-use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::world::sampler::{Purpose, purpose_seed, sample_scenes};
 use mpgdrive::world::scenarios::{Preset, PresetState};
-use std::collections::BTreeMap;
 use mpgdrive::world::state::Scene;
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -63,6 +64,35 @@ impl Actor for EgoTracks {
     }
 }
 
+/// The discounted potential's four weighted terms summed over the players, each pair once
+/// (`speed, comfort, TTC, conflict`): the recorded steps only, so after a collision they leave
+/// out the absorbing tail that the potential holds.
+fn potential_terms(config: &Config, outcome: &EpisodeOutcome) -> [f64; 4] {
+    let r = &config.reward;
+    let n = outcome.final_scene.len();
+    let trajectory = outcome.trajectory.as_ref().expect("recorded");
+    let mut sums = [0.0; 4];
+    for (k, (t, v)) in trajectory.terms.iter().zip(&trajectory.states).enumerate() {
+        let discount = config.sim.gamma.powi((k / n) as i32);
+        let w_speed = if v.on_ramp {
+            r.speed_weight_on_ramp()
+        } else {
+            r.w_speed
+        };
+        // Pair terms are logged for both players of a pair: half each.
+        let weighted = [
+            w_speed * t.speed,
+            r.w_comfort * t.comfort,
+            r.w_ttc * t.ttc / 2.0,
+            r.w_conflict * t.conflict / 2.0,
+        ];
+        for (s, w) in sums.iter_mut().zip(weighted) {
+            *s += discount * w;
+        }
+    }
+    sums
+}
+
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let config_path = args.get(1).map_or("configs/paper.toml", String::as_str);
@@ -74,7 +104,9 @@ fn main() -> anyhow::Result<()> {
         recording: Recording::Full,
         ..RolloutOptions::from_config(&config)
     };
-    println!("scenario | seed | ego drives | potential | ego's return | merged between | collision");
+    println!(
+        "scenario | seed | ego drives | potential | its speed | comfort | TTC | conflict terms | ego's return | merged between | collision"
+    );
     let scenes: Vec<(String, Scene)> = match args.get(3..) {
         Some(v) if !v.is_empty() => {
             let v: Vec<f64> = v.iter().map(|a| a.parse()).collect::<Result<_, _>>()?;
@@ -112,8 +144,9 @@ fn main() -> anyhow::Result<()> {
                 let between = outcome
                     .merged_between()
                     .map_or("never".into(), |[a, b]| format!("{a} and {b}"));
+                let [speed_term, comfort, ttc, conflict] = potential_terms(&config, &outcome);
                 println!(
-                    "{name} | {seed} | {} | {:.0} | {:.0} | {between} | {}",
+                    "{name} | {seed} | {} | {:.0} | {speed_term:.0} | {comfort:.0} | {ttc:.0} | {conflict:.0} | {:.0} | {between} | {}",
                     speed.map_or("the policy".into(), |v| format!("tracks {v} m/s")),
                     outcome.potential_return,
                     outcome.returns[0],
@@ -127,10 +160,15 @@ fn main() -> anyhow::Result<()> {
         let outcomes = policy_rollout(&config, net, Others::SameNetwork, &tests, 2, Recording::Full)?;
         let mut merged: BTreeMap<String, usize> = BTreeMap::new();
         for o in &outcomes {
-            let key = o.merged_between().map_or("never".into(), |[a, b]| format!("{a} and {b}"));
+            let key = o
+                .merged_between()
+                .map_or("never".into(), |[a, b]| format!("{a} and {b}"));
             *merged.entry(key).or_default() += 1;
         }
-        println!("seed {}, {TEST_EPISODES} test episodes, merged between: {merged:?}", side.seed);
+        println!(
+            "seed {}, {TEST_EPISODES} test episodes, merged between: {merged:?}",
+            side.seed
+        );
     }
     Ok(())
 }
