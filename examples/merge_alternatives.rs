@@ -18,6 +18,7 @@ use mpgdrive::config::Config;
 use mpgdrive::engine::outcome::EpisodeOutcome;
 use mpgdrive::engine::rollout::{Actor, Recording, RolloutOptions, rollout};
 use mpgdrive::eval::study::{Rules, load_policies};
+use mpgdrive::game::PaperReward;
 use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::policy::network::PolicyNet;
 use mpgdrive::policy::observation::PolicyActor;
@@ -68,17 +69,13 @@ impl Actor for EgoTracks {
 /// (`speed, comfort, TTC, conflict`): the recorded steps only, so after a collision they leave
 /// out the absorbing tail that the potential holds.
 fn potential_terms(config: &Config, outcome: &EpisodeOutcome) -> [f64; 4] {
-    let r = &config.reward;
+    let (r, reward) = (&config.reward, PaperReward::new(config));
     let n = outcome.final_scene.len();
     let trajectory = outcome.trajectory.as_ref().expect("recorded");
     let mut sums = [0.0; 4];
     for (k, (t, v)) in trajectory.terms.iter().zip(&trajectory.states).enumerate() {
         let discount = config.sim.gamma.powi((k / n) as i32);
-        let w_speed = if v.on_ramp {
-            r.speed_weight_on_ramp()
-        } else {
-            r.w_speed
-        };
+        let w_speed = reward.speed_weight_of(v);
         // Pair terms are logged for both players of a pair: half each.
         let weighted = [
             w_speed * t.speed,

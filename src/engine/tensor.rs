@@ -348,11 +348,7 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     let own = speed.add(&terms::comfort(u).mul_c(r.w_comfort));
     let same_lane = pairs.of_ends(&batch.on_ramp, |a, b| f64::from(u8::from(a == b)));
     let np = pairs.both.len();
-    let conflict = if r.conflict_ends_at_x_c {
-        terms::conflict_time_gap_before
-    } else {
-        terms::conflict_time_gap
-    };
+    let conflict = terms::conflict_term(r.conflict_ends_at_x_c);
     // Each pair's term in one pass over the pairs (the generic terms on dual numbers).
     let pair = Var::pairwise(&batch.x, &batch.v, &pairs.both, |row, p, [xi, vi, xj, vj]| {
         if same_lane[row * np + p] > 0.5 {

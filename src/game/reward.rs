@@ -139,12 +139,14 @@ impl PairReward for PaperReward {
                 conflict: 0.0,
             }
         } else {
-            let term = if self.conflict_ends_at_x_c {
-                terms::conflict_time_gap_before
-            } else {
-                terms::conflict_time_gap
-            };
-            let conflict = term(&a.x, &a.v, &b.x, &b.v, self.conflict_point, self.epsilon);
+            let conflict = terms::conflict_term(self.conflict_ends_at_x_c)(
+                &a.x,
+                &a.v,
+                &b.x,
+                &b.v,
+                self.conflict_point,
+                self.epsilon,
+            );
             PairTerms {
                 reward: w_conflict * conflict,
                 ttc: 0.0,

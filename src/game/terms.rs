@@ -69,3 +69,13 @@ pub fn conflict_time_gap_before<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c:
         &conflict_time_gap(x_i, v_i, x_j, v_j, x_c, eps),
     )
 }
+
+/// The conflict term a reward uses: [`conflict_time_gap_before`] with
+/// `reward.conflict_ends_at_x_c`, else the paper's [`conflict_time_gap`].
+pub fn conflict_term<T: Num>(ends_at_x_c: bool) -> fn(&T, &T, &T, &T, f64, f64) -> T {
+    if ends_at_x_c {
+        conflict_time_gap_before
+    } else {
+        conflict_time_gap
+    }
+}
