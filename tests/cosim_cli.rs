@@ -90,7 +90,42 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
             &[0, 1, 2, 3, 4]
         };
         assert_eq!(r["policy_seeds"], serde_json::json!(seeds), "{}", r["controller"]);
+        // The speed profile covers the control zone (picked up 140 m before x_c, released
+        // 50 m past it) in 20 m bands without a hole, and its step-weighted mean lies within
+        // the finished egos' own mean speeds.
+        let bands = r["speed_by_position"].as_array().unwrap();
+        let num = |b: &serde_json::Value, k: &str| b[k].as_f64().unwrap();
+        assert!(!bands.is_empty(), "{r}");
+        assert_eq!(num(&bands[0], "from"), -140.0, "{}", r["controller"]);
+        assert!(num(bands.last().unwrap(), "to") <= 60.0);
+        for pair in bands.windows(2) {
+            assert_eq!(num(&pair[0], "to"), num(&pair[1], "from"));
+        }
+        let steps: f64 = bands.iter().map(|b| num(b, "steps")).sum();
+        let mean = bands
+            .iter()
+            .map(|b| num(b, "mean_speed") * num(b, "steps"))
+            .sum::<f64>()
+            / steps;
+        let own: Vec<f64> = r["egos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| e["finished"] == true)
+            .map(|e| e["metrics"]["mean_speed"].as_f64().unwrap())
+            .collect();
+        let (lo, hi) = own
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+        assert!(
+            lo - 1e-9 <= mean && mean <= hi + 1e-9,
+            "{mean} outside {lo}..{hi}"
+        );
     }
+    let md = std::fs::read_to_string(out_dir.join("cosim.md")).unwrap();
+    assert!(md.contains(
+        "| Distance past the conflict point (m) | mpg | sarl | sumo |\n|---|---|---|---|\n| -140 to -120 |"
+    ));
     for file in [
         "cosim.md",
         "cosim.json",
@@ -132,7 +167,7 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
 }
 
 #[test]
-fn one_seed_drives_alone_and_differently_from_the_mean_of_the_seeds() {
+fn one_seed_drives_alone_and_differently_from_the_median_and_the_mean_of_the_seeds() {
     let dir = temp_dir("seeds");
     let run = |extra: &[&str], name: &str| {
         let args = [&["--controllers", "mpg", "--end", "60", "--no-diagrams"], extra].concat();
@@ -144,7 +179,15 @@ fn one_seed_drives_alone_and_differently_from_the_mean_of_the_seeds() {
     let (alone, md) = run(&["--policy-seed", "2"], "alone");
     assert_eq!(alone["policy_seeds"], serde_json::json!([2]));
     assert!(md.contains("| Policy (training seeds) | seed 2 |"), "{md}");
-    let (mean, md) = run(&[], "mean");
+    assert_eq!(alone["ensemble"], serde_json::Value::Null);
+    let (median, md) = run(&[], "median");
+    assert_eq!(median["ensemble"], "median");
+    assert!(
+        md.contains("| Policy (training seeds) | median of seeds 0, 1, 2, 3, 4 |"),
+        "{md}"
+    );
+    let (mean, md) = run(&["--ensemble", "mean"], "mean");
+    assert_eq!(mean["ensemble"], "mean");
     assert!(
         md.contains("| Policy (training seeds) | mean of seeds 0, 1, 2, 3, 4 |"),
         "{md}"
@@ -158,9 +201,13 @@ fn one_seed_drives_alone_and_differently_from_the_mean_of_the_seeds() {
             .map(|e| e["metrics"]["mean_speed"].as_f64().unwrap())
             .collect()
     };
-    let (a, m) = (speeds(&alone), speeds(&mean));
-    assert!(!a.is_empty() && a.len() == m.len(), "{a:?} {m:?}");
+    let (a, d, m) = (speeds(&alone), speeds(&median), speeds(&mean));
+    assert!(
+        !a.is_empty() && a.len() == m.len() && d.len() == m.len(),
+        "{a:?} {d:?} {m:?}"
+    );
     assert!(a.iter().zip(&m).any(|(x, y)| (x - y).abs() > 1e-6), "{a:?} {m:?}");
+    assert!(d.iter().zip(&m).any(|(x, y)| (x - y).abs() > 1e-6), "{d:?} {m:?}");
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! `mpgdrive batch`: every (route file, controller, seed) as its own cosim worker.
 
-use crate::cli::common::{PolicyPair, deployed_policy, print, progress_bar, usage};
+use crate::cli::common::{PolicyPair, SeedChoice, deployed_policy, print, progress_bar, usage};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, combos, run_batch};
@@ -29,10 +29,8 @@ pub struct BatchArgs {
     controllers: Vec<String>,
     #[command(flatten)]
     policies: PolicyPair,
-    /// Which seed's policy drives every run, from a directory (default: every seed as one
-    /// policy, the mean of their actions, as cosim's).
-    #[arg(long)]
-    policy_seed: Option<u64>,
+    #[command(flatten)]
+    deploy: SeedChoice,
     /// Merge geometry (default: merge.toml beside the .sumocfg).
     #[arg(long)]
     merge: Option<PathBuf>,
@@ -193,7 +191,7 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<Config> {
     let geometry = MergeGeometry::load(&merge)?;
     mpgdrive::sumo::inputs::check_geometry(&geometry, &merge, &files.net)?;
     for mode in kinds.iter().filter_map(|k| k.mode()) {
-        deployed_policy(&args.policies.of(mode, &config), args.policy_seed, &config)?;
+        deployed_policy(&args.policies.of(mode, &config), &args.deploy, &config)?;
     }
     Ok(config)
 }
@@ -219,9 +217,10 @@ fn worker_args(args: &BatchArgs, config: &Config) -> Result<Vec<String>> {
         "--end".into(),
         args.end.to_string(),
     ];
-    if let Some(seed) = args.policy_seed {
+    if let Some(seed) = args.deploy.policy_seed {
         common.extend(["--policy-seed".into(), seed.to_string()]);
     }
+    common.extend(["--ensemble".into(), args.deploy.ensemble.name().into()]);
     if let Some(gate) = args.gate {
         common.extend(["--gate".into(), gate.to_string()]);
     }

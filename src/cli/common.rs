@@ -6,7 +6,7 @@ use clap::Args;
 use mpgdrive::config::{Config, ScenarioKind};
 use mpgdrive::eval::study::{Rules, load_policies};
 use mpgdrive::policy::file::Sidecar;
-use mpgdrive::policy::{Mode, PolicyEnsemble, PolicyNet};
+use mpgdrive::policy::{Combine, Mode, PolicyEnsemble, PolicyNet};
 use std::path::{Path, PathBuf};
 
 /// Configuration, seed and threads of the commands over the internal simulator.
@@ -57,6 +57,20 @@ pub struct PolicyPair {
     /// policies/traffic/sarl).
     #[arg(long)]
     pub sarl_policy: Option<PathBuf>,
+}
+
+/// Which seeds of a policy directory drive a deployment, and how they act as one.
+#[derive(Debug, Clone, Args)]
+pub struct SeedChoice {
+    /// Which seed's policy drives, from a directory (default: every seed, as one policy; see
+    /// --ensemble).
+    #[arg(long)]
+    pub policy_seed: Option<u64>,
+    /// How the seeds of a directory act as one policy: each vehicle's action is the median of
+    /// the seeds' actions (the default: one seed that brakes where the others do not leaves it
+    /// alone) or their mean.
+    #[arg(long, value_enum, default_value_t = Combine::Median)]
+    pub ensemble: Combine,
 }
 
 impl PolicyPair {
@@ -136,18 +150,18 @@ pub fn pick_policy(path: &Path, seed: Option<u64>, config: &Config) -> Result<Po
     Ok(select_policies(path, seed, config)?.swap_remove(0).0)
 }
 
-/// The policy a deployment drives with, and its training seeds: `seed`'s network of a file or
-/// directory, or else every seed as one ensemble (the mean of their actions).
+/// The policy a deployment drives with, and its training seeds: the chosen seed's network of a
+/// file or directory, or else every seed as one ensemble.
 pub fn deployed_policy(
     path: &Path,
-    seed: Option<u64>,
+    choice: &SeedChoice,
     config: &Config,
 ) -> Result<(PolicyEnsemble, Vec<u64>)> {
-    let (nets, seeds): (Vec<_>, Vec<_>) = select_policies(path, seed, config)?
+    let (nets, seeds): (Vec<_>, Vec<_>) = select_policies(path, choice.policy_seed, config)?
         .into_iter()
         .map(|(net, side)| (net, side.seed))
         .unzip();
-    let policy = PolicyEnsemble::new(nets).with_context(|| format!("{}", path.display()))?;
+    let policy = PolicyEnsemble::new(nets, choice.ensemble).with_context(|| format!("{}", path.display()))?;
     Ok((policy, seeds))
 }
 

@@ -1,6 +1,6 @@
 //! `mpgdrive cosim`: the command over [`mpgdrive::sumo::cosim`].
 
-use crate::cli::common::PolicyPair;
+use crate::cli::common::{PolicyPair, SeedChoice};
 use clap::Args;
 use mpgdrive::sumo::ControllerKind;
 use std::path::PathBuf;
@@ -24,10 +24,8 @@ pub struct CosimArgs {
     merge: Option<PathBuf>,
     #[command(flatten)]
     policies: PolicyPair,
-    /// Which seed's policy drives, from a directory (default: every seed, as one policy: each
-    /// vehicle's action is the mean of the seeds' actions).
-    #[arg(long)]
-    policy_seed: Option<u64>,
+    #[command(flatten)]
+    deploy: SeedChoice,
     /// Controllers to compare, comma-separated: mpg, sarl, sumo.
     #[arg(long, value_delimiter = ',', default_value = "mpg,sarl,sumo")]
     controllers: Vec<ControllerKind>,
@@ -112,7 +110,7 @@ mod with_sumo {
         for &kind in &args.controllers {
             let net = kind
                 .mode()
-                .map(|mode| deployed_policy(&args.policies.of(mode, &config), args.policy_seed, &config))
+                .map(|mode| deployed_policy(&args.policies.of(mode, &config), &args.deploy, &config))
                 .transpose()?;
             controllers.push((kind, net));
         }
@@ -215,9 +213,11 @@ mod with_sumo {
         let mut runs = Vec::new();
         for (kind, policy) in controllers {
             let (policy, seeds) = policy.unzip();
+            let ensemble = policy.as_ref().map(PolicyEnsemble::combine);
             match run_controller(config, settings, kind, policy) {
                 Ok(mut run) => {
                     run.policy_seeds = seeds.unwrap_or_default();
+                    run.ensemble = ensemble.filter(|_| run.policy_seeds.len() > 1);
                     eprintln!(
                         "cosim: {} done: {} egos over {:.0} s of SUMO time",
                         kind.name(),

@@ -7,7 +7,7 @@ pub mod mode;
 pub mod network;
 pub mod observation;
 
-pub use ensemble::PolicyEnsemble;
+pub use ensemble::{Combine, PolicyEnsemble};
 pub use mode::Mode;
 pub use network::{NetSpec, PolicyNet};
 pub use observation::{BatchPolicy, LinearPolicy, PolicyActor, obs_dim};

@@ -73,6 +73,7 @@ use crate::render::timespace::{Road, Sample, TimeSpace};
 use crate::sumo::geometry::{MergeGeometry, PlayerControl};
 use crate::sumo::kind::ControllerKind;
 use crate::sumo::positions::LanePositions;
+use crate::sumo::profile::SpeedBands;
 use crate::sumo::{Sumo, SumoError};
 use crate::world::merge_gate::{gate_holds, lane_change_is_safe, stop_bound};
 use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
@@ -173,6 +174,9 @@ pub struct EgoRecord {
     /// Metrics accumulated over the tracked steps (same definitions as `mpgdrive eval`).
     #[serde(skip)]
     pub stats: EgoStats,
+    /// Its speed by distance to the conflict point over the tracked steps.
+    #[serde(skip)]
+    pub speed_bands: SpeedBands,
 }
 
 impl EgoRecord {
@@ -684,6 +688,7 @@ impl Controller {
                 collision: false,
                 lost: false,
                 stats: EgoStats::default(),
+                speed_bands: SpeedBands::default(),
             },
         );
         Ok(true)
@@ -757,6 +762,9 @@ impl Controller {
                 record
                     .stats
                     .update_vehicle(scene, game.ego, ego_car.accel, self.rules.dt);
+                record
+                    .speed_bands
+                    .record(ego_car.x - self.geometry.conflict_point, ego_car.v);
             }
             if self.kind != ControllerKind::Sumo {
                 for (m, &(j, slot)) in game.members.iter().enumerate() {

@@ -12,12 +12,13 @@
 
 use crate::config::Config;
 use crate::eval::metrics::{EpisodeMetrics, Summary};
-use crate::policy::ensemble::PolicyEnsemble;
+use crate::policy::ensemble::{Combine, PolicyEnsemble};
 use crate::render::timespace::TimeSpace;
 use crate::sumo::controller::{CollisionEvent, ControlModes, Controller, EgoRecord};
 use crate::sumo::geometry::MergeGeometry;
 use crate::sumo::kind::ControllerKind;
 use crate::sumo::positions::LanePositions;
+use crate::sumo::profile::{self, BandSpeed, SpeedBands};
 use crate::sumo::{Backend, Sumo, SumoError};
 use serde::Serialize;
 use std::collections::HashMap;
@@ -134,9 +135,10 @@ pub struct EgoResult {
 pub struct ControllerRun {
     /// Controller.
     pub controller: ControllerKind,
-    /// Training seeds of the policy that drove (several: the mean of their actions; none for
-    /// `sumo`).
+    /// Training seeds of the policy that drove (several: one ensemble; none for `sumo`).
     pub policy_seeds: Vec<u64>,
+    /// How several seeds' actions made one (none for one seed and for `sumo`).
+    pub ensemble: Option<Combine>,
     /// SUMO seed.
     pub seed: u64,
     /// SUMO's version ("SUMO 1.15.0").
@@ -155,6 +157,8 @@ pub struct ControllerRun {
     pub collisions: Vec<CollisionEvent>,
     /// Steps where SUMO did not apply the commanded speed.
     pub speed_overrides: u64,
+    /// Mean speed of the finished egos by distance to the conflict point ([`profile`]).
+    pub speed_by_position: Vec<BandSpeed>,
     /// Mean SSM minimum TTC over finished egos with an SSM conflict (s).
     pub mean_min_ttc: Option<f64>,
     /// Mean SSM maximum DRAC (m/s^2).
@@ -423,6 +427,10 @@ fn summarise(
         })
         .collect();
     let finished: Vec<&EgoResult> = egos.iter().filter(|e| e.finished).collect();
+    let mut bands = SpeedBands::default();
+    for r in records.iter().filter(|r| r.finished()) {
+        bands.add(&r.speed_bands);
+    }
     let metrics: Vec<EpisodeMetrics> = finished.iter().map(|e| e.metrics).collect();
     let mean_of = |f: &dyn Fn(&EgoResult) -> Option<f64>| {
         let v: Vec<f64> = finished.iter().filter_map(|e| f(e)).collect();
@@ -431,6 +439,7 @@ fn summarise(
     ControllerRun {
         controller,
         policy_seeds: Vec::new(),
+        ensemble: None,
         seed,
         sumo_version: String::new(),
         desired_speed: None,
@@ -452,6 +461,7 @@ fn summarise(
         egos,
         collisions,
         speed_overrides,
+        speed_by_position: bands.bands(),
         sumo_us_per_step,
         controller_us_per_step,
         timespace: None,
@@ -557,7 +567,9 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
         s += "\n";
     };
     let m = |r: &ControllerRun| r.summary;
-    row("Policy (training seeds)", &|r| policy_cell(&r.policy_seeds));
+    row("Policy (training seeds)", &|r| {
+        policy_cell(&r.policy_seeds, r.ensemble)
+    });
     row("Egos (finished / unfinished)", &|r| {
         format!("{} / {}", r.summary.episodes, r.unfinished)
     });
@@ -604,16 +616,21 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
     row("Commanded speeds SUMO did not apply (steps)", &|r| {
         r.speed_overrides.to_string()
     });
+    let names: Vec<&str> = runs.iter().map(|r| r.controller.name()).collect();
+    let profiles: Vec<&[BandSpeed]> = runs.iter().map(|r| r.speed_by_position.as_slice()).collect();
+    s +=
+        "\nMean ego speed (m/s) by distance past the conflict point (finished egos, every tracked step):\n\n";
+    s += &profile::markdown(&names, &profiles);
     s
 }
 
-/// Which trained policy drove: one seed, the mean of several, or none (`sumo`).
-fn policy_cell(seeds: &[u64]) -> String {
+/// Which trained policy drove: one seed, the median or mean of several, or none (`sumo`).
+fn policy_cell(seeds: &[u64], ensemble: Option<Combine>) -> String {
     let list = || seeds.iter().map(u64::to_string).collect::<Vec<_>>().join(", ");
     match seeds.len() {
         0 => "-".into(),
         1 => format!("seed {}", seeds[0]),
-        _ => format!("mean of seeds {}", list()),
+        _ => format!("{} of seeds {}", ensemble.unwrap_or_default().name(), list()),
     }
 }
 

@@ -17,6 +17,7 @@ pub mod inputs;
 pub mod inspect;
 pub mod kind;
 pub mod positions;
+pub mod profile;
 
 #[cfg(feature = "sumo")]
 pub use controller::{ControlModes, Controller, EgoRecord};
