@@ -121,11 +121,22 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
             lo - 1e-9 <= mean && mean <= hi + 1e-9,
             "{mean} outside {lo}..{hi}"
         );
+        // The target lane's profile covers the same zone, whoever drives: from the pick-up
+        // point's band to the release point's ([40, 60)), at speeds a car can have.
+        let lane = r["lane_speed_by_position"].as_array().unwrap();
+        assert_eq!(num(&lane[0], "from"), -140.0, "{}", r["controller"]);
+        assert_eq!(num(lane.last().unwrap(), "to"), 60.0, "{}", r["controller"]);
+        assert_eq!(lane.len(), 10);
+        assert!(
+            lane.iter()
+                .all(|b| (0.0..=30.0).contains(&num(b, "mean_speed")) && num(b, "steps") > 0.0)
+        );
     }
     let md = std::fs::read_to_string(out_dir.join("cosim.md")).unwrap();
-    assert!(md.contains(
-        "| Distance past the conflict point (m) | mpg | sarl | sumo |\n|---|---|---|---|\n| -140 to -120 |"
-    ));
+    // Two tables: the egos' and the target lane's.
+    let header =
+        "| Distance past the conflict point (m) | mpg | sarl | sumo |\n|---|---|---|---|\n| -140 to -120 |";
+    assert_eq!(md.matches(header).count(), 2, "{md}");
     for file in [
         "cosim.md",
         "cosim.json",

@@ -232,6 +232,9 @@ pub struct Controller {
     pub collisions: Vec<CollisionEvent>,
     /// Steps where SUMO did not reach the commanded speed (by more than 0.01 m/s).
     pub overridden: u64,
+    /// Speed of every target-lane vehicle in the control zone by distance to the conflict point,
+    /// each step (whoever drives it: the traffic the egos merge into).
+    pub lane_speed: SpeedBands,
     commanded: HashMap<String, f64>,
     /// Acceleration applied last step per driven vehicle: model speed = SUMO speed + a dt.
     applied: HashMap<String, f64>,
@@ -318,6 +321,7 @@ impl Controller {
             colliding: HashSet::new(),
             collisions: Vec::new(),
             overridden: 0,
+            lane_speed: SpeedBands::default(),
             commanded: HashMap::new(),
             applied: HashMap::new(),
             traffic,
@@ -381,6 +385,12 @@ impl Controller {
             }
         }
         let cars = self.read_cars(sumo, &gone)?;
+        let (x_c, zone) = (self.geometry.conflict_point, &self.geometry);
+        for c in cars.iter().filter(|c| c.ramp_lane.is_none()) {
+            if (zone.control_from..=x_c + zone.release_after).contains(&c.x) {
+                self.lane_speed.record(c.x - x_c, c.v);
+            }
+        }
         let games = self.form_games(sumo, &cars, time)?;
         let commands = self.decide(&cars, &games);
         let mut driven = HashSet::new();

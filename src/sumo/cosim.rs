@@ -159,6 +159,9 @@ pub struct ControllerRun {
     pub speed_overrides: u64,
     /// Mean speed of the finished egos by distance to the conflict point ([`profile`]).
     pub speed_by_position: Vec<BandSpeed>,
+    /// Mean speed of the target-lane vehicles in the control zone, by the same bands: the
+    /// traffic the egos merge into (the players, in the game).
+    pub lane_speed_by_position: Vec<BandSpeed>,
     /// Mean SSM minimum TTC over finished egos with an SSM conflict (s).
     pub mean_min_ttc: Option<f64>,
     /// Mean SSM maximum DRAC (m/s^2).
@@ -319,6 +322,7 @@ pub fn run_controller(
     let desired_speed = controller.desired_speed();
     let collisions = controller.collisions.clone();
     let speed_overrides = controller.overridden;
+    let lane_speed = controller.lane_speed.bands();
     let mut timespace = controller.take_timespace();
     let records = controller.finish();
     let ssm_output = match settings.launch {
@@ -350,6 +354,7 @@ pub fn run_controller(
         per_step(timing.total_us),
     );
     run.timespace = timespace;
+    run.lane_speed_by_position = lane_speed;
     run.ssm_output = ssm_output;
     run.sumo_version = sumo_version;
     run.desired_speed = desired_speed;
@@ -462,6 +467,7 @@ fn summarise(
         collisions,
         speed_overrides,
         speed_by_position: bands.bands(),
+        lane_speed_by_position: Vec::new(),
         sumo_us_per_step,
         controller_us_per_step,
         timespace: None,
@@ -621,6 +627,9 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
     s +=
         "\nMean ego speed (m/s) by distance past the conflict point (finished egos, every tracked step):\n\n";
     s += &profile::markdown(&names, &profiles);
+    let lanes: Vec<&[BandSpeed]> = runs.iter().map(|r| r.lane_speed_by_position.as_slice()).collect();
+    s += "\nMean speed (m/s) of the target-lane vehicles in the control zone, same bands (every step):\n\n";
+    s += &profile::markdown(&names, &lanes);
     s
 }
 
