@@ -385,11 +385,13 @@ impl Controller {
             }
         }
         let cars = self.read_cars(sumo, &gone)?;
-        let (x_c, zone) = (self.geometry.conflict_point, &self.geometry);
-        for c in cars.iter().filter(|c| c.ramp_lane.is_none()) {
-            if (zone.control_from..=x_c + zone.release_after).contains(&c.x) {
-                self.lane_speed.record(c.x - x_c, c.v);
-            }
+        let g = &self.geometry;
+        let zone = g.control_from..=g.conflict_point + g.release_after;
+        for c in cars
+            .iter()
+            .filter(|c| c.ramp_lane.is_none() && zone.contains(&c.x))
+        {
+            self.lane_speed.record(c.x - g.conflict_point, c.v);
         }
         let games = self.form_games(sumo, &cars, time)?;
         let commands = self.decide(&cars, &games);

@@ -1,9 +1,10 @@
-//! Where along the merge the egos drive slower or faster: their mean speed in bands of
-//! [`BAND`] metres of distance to the conflict point, over every step they are tracked.
+//! Where along the merge vehicles drive slower or faster: their mean speed in bands of
+//! [`BAND`] metres of distance to the conflict point, over every step they are recorded.
 //!
-//! A run's mean ego speed says how much a controller loses against SUMO's drivers; this says
-//! where (braking before the merge, merging slowly, or after it). Each ego's band sums are
-//! kept apart, so a run's profile, like its other metrics, is over its finished egos.
+//! A run's mean ego speed says how much a controller loses against SUMO's drivers; the egos'
+//! profile says where (braking before the merge, merging slowly, or after it), and the target
+//! lane's, in the same bands, what traffic they merge into. Each ego's band sums are kept
+//! apart, so a run's ego profile, like its other metrics, is over its finished egos.
 
 use serde::Serialize;
 use std::collections::BTreeMap;
