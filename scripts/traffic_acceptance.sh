@@ -11,6 +11,7 @@
 # traffic policies), SPEED_MODE and LANE_CHANGE_MODE (SUMO's shields, default cosim's 25 and
 # 256; 0 and 0 measure the policy with no shield at all), PLAYER_LANE_CHANGE_MODE (default
 # cosim's 1621: target-lane players keep SUMO's lane changes), CONFIG (default configs/traffic.toml), POLICY (default its shipped set),
+# ENSEMBLE=median|mean (how the policy's seeds combine; default cosim's, the median),
 # SEEDS (default "0 1 2"), SCALES (default "0.8,1.0,1.2"), END (default 900), JOBS (default
 # the number of cores). Writes OUT/acceptance.md and one cosim folder per run.
 set -euo pipefail
@@ -59,13 +60,14 @@ done
 
 run_one() {
     read -r cfg route merge controllers seed folder <<<"$1"
-    "$bin" cosim --config "$config" ${POLICY:+--policy "$POLICY"} --sumocfg "$cfg" --route-files "$route" \
+    "$bin" cosim --config "$config" ${POLICY:+--policy "$POLICY"} ${ENSEMBLE:+--ensemble "$ENSEMBLE"} \
+        --sumocfg "$cfg" --route-files "$route" \
         --merge "$merge" --controllers "$controllers" --seed "$seed" --end "$end" \
         ${GATE:+--gate "$GATE"} --speed-mode "${SPEED_MODE:-25}" --lane-change-mode "${LANE_CHANGE_MODE:-256}" \
         --player-lane-change-mode "${PLAYER_LANE_CHANGE_MODE:-1621}" --no-diagrams --json --out "$folder" >"$folder.json" 2>"$folder.log"
 }
 export -f run_one
-export bin config end POLICY GATE SPEED_MODE LANE_CHANGE_MODE PLAYER_LANE_CHANGE_MODE
+export bin config end POLICY ENSEMBLE GATE SPEED_MODE LANE_CHANGE_MODE PLAYER_LANE_CHANGE_MODE
 start=$(date +%s)
 tr '\n' '\0' <"$runs" | xargs -0 -P "$jobs" -I{} bash -c 'run_one "$@"' _ {}
 echo "$(wc -l <"$runs") cosim runs in $(($(date +%s) - start)) s ($jobs at a time)" >&2
