@@ -170,8 +170,12 @@ fn internal_tracks(config: &Config, policy: &str, scene: &Scene, steps: usize) -
 fn sumo_and_the_internal_simulator_agree_on_the_ego_trajectory() {
     // The acceptance asks for 0.5 m over 10 s. With the one-step speed lag of the controller
     // (src/sumo/controller.rs) and lanes whose length equals their drawn length, the two agree
-    // to rounding (measured: about 2e-13 m) from the initial state through the merge at
-    // x_c = 180 m until the controller releases the ego 50 m later; from then on SUMO drives it.
+    // to rounding from the initial state through the merge at x_c = 180 m until the controller
+    // releases the ego 50 m later; from then on SUMO drives it. The rounding is that of two
+    // forward passes of one network: libtorch's in the internal simulator, the deployment's
+    // plain Rust one in SUMO (actions within 1e-5 m/s^2; measured: at most 6e-6 m here, and
+    // 2e-13 m when both used libtorch). A mismatch of the integration or the lanes would be
+    // centimetres at least.
     let _turn = SUMO.lock().unwrap_or_else(|e| e.into_inner());
     let config = paper();
     let mut geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
@@ -207,7 +211,7 @@ fn sumo_and_the_internal_simulator_agree_on_the_ego_trajectory() {
             scene.vehicles[0].x,
             controlled as f64 * config.sim.dt
         );
-        assert!(worst < 1e-6, "worst {worst} m");
+        assert!(worst < 1e-4, "worst {worst} m");
     }
 }
 
