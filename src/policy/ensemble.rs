@@ -22,12 +22,9 @@
 //! own forward pass the actions agree within 1e-5 m/s^2 (its matrix products sum in another
 //! order); issue 15's acceptance grid came out the same to the last printed digit.
 
-use crate::policy::network::{NetSpec, PolicyNet};
+use crate::policy::network::{LEAKY_SLOPE, NetSpec, PolicyNet};
 use crate::policy::observation::BatchPolicy;
 use tch::Tensor;
-
-/// libtorch's default slope of `leaky_relu` below 0, as [`PolicyNet`] uses it.
-const LEAKY_SLOPE: f32 = 0.01;
 
 /// The networks given for an ensemble do not fit together.
 #[derive(Debug, thiserror::Error)]
@@ -80,7 +77,7 @@ impl Combine {
 }
 
 /// Networks of one [`NetSpec`] acting as one policy: the median or the mean of their actions.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct PolicyEnsemble {
     spec: NetSpec,
     members: Vec<Dense>,
@@ -91,7 +88,7 @@ pub struct PolicyEnsemble {
 
 /// One member's weights: per layer, `[in][out]` row-major (each input's weights to every output
 /// side by side) and `[out]` biases.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct Dense {
     layers: [(Vec<f32>, Vec<f32>); 3],
 }
@@ -102,12 +99,11 @@ impl Dense {
             layers: std::array::from_fn(|k| {
                 let layer = net.layer(k);
                 let out = layer.ws.size()[0] as usize;
-                let w = tch::no_grad(|| layer.ws.tr().contiguous().flatten(0, -1));
-                let b = layer
-                    .bs
-                    .as_ref()
-                    .map_or_else(|| vec![0.0; out], |b| floats(&b.detach()));
-                (floats(&w), b)
+                tch::no_grad(|| {
+                    let w = floats(&layer.ws.tr().contiguous().flatten(0, -1));
+                    let b = layer.bs.as_ref().map_or_else(|| vec![0.0; out], floats);
+                    (w, b)
+                })
             }),
         }
     }

@@ -14,6 +14,10 @@ pub const OBS_SCALE: [f32; N_FEATURES] = [0.01, 1.0 / 30.0, 0.01, 0.1, 1.0, 0.01
 /// relative speed, flag) and the desired speed (as speeds, by 30 m/s).
 pub const TRAFFIC_SCALE: [f32; 4] = [0.01, 0.1, 1.0, 1.0 / 30.0];
 
+/// Slope of the hidden layers' Leaky ReLU below 0 (libtorch's default, which
+/// [`PolicyNet::forward`] uses); the hand-written passes of training and deployment use it too.
+pub(crate) const LEAKY_SLOPE: f32 = 0.01;
+
 /// Sizes and scales of a network, everything needed to rebuild it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NetSpec {

@@ -12,7 +12,7 @@
 //! that a seed's curves do not depend on which other seeds train with it.
 
 use crate::engine::tape::Var;
-use crate::policy::network::{NetSpec, PolicyNet};
+use crate::policy::network::{LEAKY_SLOPE, NetSpec, PolicyNet};
 use crate::policy::observation::{BatchPolicy, Layout, observation_rows};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -50,11 +50,8 @@ fn floats_mut(t: &mut Tensor) -> &mut [f32] {
 
 /// The derivative of `leaky_relu` at an output `h`: it is positive exactly where its input is.
 fn leaky_slope(h: f32) -> f32 {
-    if h > 0.0 { 1.0 } else { LEAKY_SLOPE as f32 }
+    if h > 0.0 { 1.0 } else { LEAKY_SLOPE }
 }
-
-/// libtorch's default slope of `leaky_relu` below 0.
-const LEAKY_SLOPE: f64 = 0.01;
 
 /// One member's rows of a step, as the forward pass left them (row-major).
 struct Activations<'a> {
