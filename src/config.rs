@@ -143,6 +143,13 @@ pub struct SimConfig {
     /// `|x_i - x_j| - length - safety_gap`, so a platoon held at TTC = tau_s settles this far
     /// apart instead of bumper to bumper.
     pub safety_gap: f64,
+    /// Time gap the feasibility projection keeps on top of the clearance (s): its TTC uses
+    /// the gap less `time_headway` times the follower's speed, so a vehicle settles behind a
+    /// leader at `safety_gap + time_headway * v` (SUMO's and IDM's car following keep such a
+    /// gap). 0 when absent: the paper's TTC rule alone, which at equal speeds lets a vehicle
+    /// follow `safety_gap` behind its leader at any speed.
+    #[serde(default)]
+    pub time_headway: f64,
     /// With `feasibility`: also hold a ramp vehicle able to stop before `x_c` while entering
     /// the target lane is not safe (the merge gate, [`crate::world::merge_gate`]). Off when
     /// absent (files written before it existed).
@@ -476,6 +483,7 @@ impl Config {
         )?;
         positive("sim.tau_s", m.tau_s)?;
         non_negative("sim.safety_gap", m.safety_gap)?;
+        non_negative("sim.time_headway", m.time_headway)?;
         positive("sim.b_safe", m.b_safe)?;
         non_negative("reward.v_desired", r.v_desired)?;
         positive("reward.v_c", r.v_c)?;

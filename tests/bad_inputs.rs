@@ -159,6 +159,11 @@ fn cases() -> Vec<Case> {
         demo("zero horizon", smoke_with("horizon", "0.0"), "horizon"),
         demo("discount above 1", smoke_with("gamma", "1.5"), "gamma"),
         demo("negative TTC threshold", smoke_with("tau_s", "-1.0"), "tau_s"),
+        demo(
+            "NaN projection time gap",
+            smoke().replacen("safety_gap = 2.0", "safety_gap = 2.0\ntime_headway = nan", 1),
+            "sim.time_headway",
+        ),
         demo("inverted speed limits", smoke_with("v_max", "-1.0"), "v_max"),
         demo(
             "inverted headway range",

@@ -2,7 +2,19 @@
 
 use approx::assert_abs_diff_eq;
 use mpgdrive::world::geometry::{Footprint, boxes_overlap};
-use mpgdrive::world::safety::{NO_BOUND, Neighbor, clip_action, feasible_interval, project_feasible, ttc};
+use mpgdrive::world::safety::{
+    NO_BOUND, Neighbor, Projection, clip_action, feasible_interval, project_feasible, ttc,
+};
+
+/// A 5 m clearance, dt = 0.1 s, tau_s = 3 s, and time headway `h`.
+fn rule(h: f64) -> Projection {
+    Projection {
+        clearance: 5.0,
+        time_headway: h,
+        dt: 0.1,
+        tau_s: 3.0,
+    }
+}
 
 fn nb(x: f64, v: f64) -> Neighbor<f64> {
     Neighbor { x, v, present: 1.0 }
@@ -29,7 +41,7 @@ fn feasible_interval_worked_case() {
     // dt = 0.1, tau = 3. After one step the bumper gaps are d_L = 16.2 - 1.5 - 5 = 9.7, so
     // v' <= 12 + 9.7 / 3 and a <= (12 + 3.2333 - 15) / 0.1 = 2.3333; d_F = 1.5 - (-13.2) - 5
     // = 9.7, so a >= (18 - 3.2333 - 15) / 0.1 = -2.3333.
-    let (lo, hi) = feasible_interval(&0.0, &15.0, &nb(15.0, 12.0), &nb(-15.0, 18.0), 5.0, 0.1, 3.0);
+    let (lo, hi) = feasible_interval(&0.0, &15.0, &nb(15.0, 12.0), &nb(-15.0, 18.0), &rule(0.0));
     assert_abs_diff_eq!(hi, 7.0 / 3.0, epsilon = 1e-9);
     assert_abs_diff_eq!(lo, -7.0 / 3.0, epsilon = 1e-9);
     assert_abs_diff_eq!(project_feasible(&5.0, &lo, &hi), 7.0 / 3.0, epsilon = 1e-9);
@@ -41,8 +53,32 @@ fn feasible_interval_worked_case() {
 }
 
 #[test]
+fn time_headway_takes_the_followers_speed_off_each_gap() {
+    // The worked case above with h = 0.5 s. Towards the leader the vehicle's next speed is
+    // the follower's: v' <= 12 + (9.7 - 0.5 v') / 3, so v' <= (12 + 9.7 / 3) / (1 + 0.5 / 3)
+    // = 91.4 / 7 and a <= (91.4 / 7 - 15) / 0.1 = -13.6 / 0.7. Towards the follower its
+    // speed, 18: the gap is 9.7 - 9 = 0.7, so a >= (18 - 0.7 / 3 - 15) / 0.1 = 83 / 3. The
+    // interval is empty: the leader bound wins when projected.
+    let (lo, hi) = feasible_interval(&0.0, &15.0, &nb(15.0, 12.0), &nb(-15.0, 18.0), &rule(0.5));
+    assert_abs_diff_eq!(hi, -13.6 / 0.7, epsilon = 1e-9);
+    assert_abs_diff_eq!(lo, 83.0 / 3.0, epsilon = 1e-9);
+    // At equal speeds a vehicle may hold its speed exactly where its gap after the step is
+    // the headway's: 10 m/s behind a 10 m/s leader with h = 1 s needs a bumper gap of 10 m
+    // (v' <= (10 + 10 / 3) / (4 / 3) = 10); 1 m closer, v' <= (10 + 9 / 3) / (4 / 3) = 9.75.
+    let (_, hi) = feasible_interval(&0.0, &10.0, &nb(15.0, 10.0), &none(), &rule(1.0));
+    assert_abs_diff_eq!(hi, 0.0, epsilon = 1e-9);
+    let (_, closer) = feasible_interval(&0.0, &10.0, &nb(14.0, 10.0), &none(), &rule(1.0));
+    assert_abs_diff_eq!(closer, -2.5, epsilon = 1e-9);
+    // The bound does not depend on the vehicle's own speed beyond its step: held at it, the
+    // next speed is the same from 9 or 11 m/s when the gap after the step is the same.
+    let v_next =
+        |v: f64, lead_x: f64| v + feasible_interval(&0.0, &v, &nb(lead_x, 10.0), &none(), &rule(1.0)).1 * 0.1;
+    assert_abs_diff_eq!(v_next(9.0, 14.9), v_next(11.0, 15.1), epsilon = 1e-9);
+}
+
+#[test]
 fn missing_neighbours_give_no_bound() {
-    let (lo, hi) = feasible_interval(&0.0, &15.0, &none(), &none(), 5.0, 0.1, 3.0);
+    let (lo, hi) = feasible_interval(&0.0, &15.0, &none(), &none(), &rule(0.0));
     assert_eq!((lo, hi), (-NO_BOUND, NO_BOUND));
     assert_eq!(project_feasible(&4.0, &lo, &hi), 4.0);
 }
@@ -52,7 +88,7 @@ fn empty_interval_protects_the_front() {
     // Leader 11 m ahead at 10 m/s, follower 11 m behind at 20 m/s, own speed 15 m/s, 5 m
     // cars: both gaps after a step are 5.5 m, so hi = (10 + 5.5 / 3 - 15) / 0.1 = -31.67 and
     // lo = (20 - 5.5 / 3 - 15) / 0.1 = +31.67.
-    let (lo, hi) = feasible_interval(&0.0, &15.0, &nb(11.0, 10.0), &nb(-11.0, 20.0), 5.0, 0.1, 3.0);
+    let (lo, hi) = feasible_interval(&0.0, &15.0, &nb(11.0, 10.0), &nb(-11.0, 20.0), &rule(0.0));
     assert!(lo > hi);
     assert_abs_diff_eq!(hi, -95.0 / 3.0, epsilon = 1e-9);
     let a = project_feasible(&0.0, &lo, &hi);

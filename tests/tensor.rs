@@ -233,6 +233,14 @@ fn engines_agree_in_merge_traffic_with_human_drivers() {
 }
 
 #[test]
+fn engines_agree_in_merge_traffic_with_a_time_headway() {
+    // The projection keeping a 1 s time gap (`sim.time_headway`), the scenes sampled for it.
+    let mut config = common::traffic();
+    config.sim.time_headway = 1.0;
+    traffic_engines_agree(&config);
+}
+
+#[test]
 fn engines_agree_in_merge_traffic_with_an_acceleration_lane() {
     // The same with the ramp going on 40 m past x_c: ramp vehicles without a gap stay on it
     // past x_c (the speed-keeping players leave some there), in both engines alike.

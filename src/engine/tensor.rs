@@ -249,15 +249,7 @@ pub fn apply_limits(
     let a = if feasibility {
         let lead = nb.get(batch, Which::LaneLeader);
         let follow = nb.get(batch, Which::LaneFollower);
-        let (lo, hi) = feasible_interval(
-            &batch.x,
-            &batch.v,
-            &lead,
-            &follow,
-            rules.clearance(),
-            dt,
-            rules.tau_s,
-        );
+        let (lo, hi) = feasible_interval(&batch.x, &batch.v, &lead, &follow, &rules.projection());
         let lane = project_feasible(raw, &lo, &hi);
         if rules.merge_gate || batch.any_human() {
             merge_gate(rules, batch, &lane)

@@ -92,7 +92,7 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
 
 /// The world rules a trained policy's behaviour rests on, by configuration key: the step, the
 /// limits, the vehicle box, the geometry and the feasibility rules (flags as 0 or 1).
-fn world_rules(c: &Config) -> [(&'static str, f64); 15] {
+fn world_rules(c: &Config) -> [(&'static str, f64); 16] {
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     [
         ("sim.dt", c.sim.dt),
@@ -106,6 +106,7 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 15] {
         ("sim.feasibility", flag(c.sim.feasibility)),
         ("sim.tau_s", c.sim.tau_s),
         ("sim.safety_gap", c.sim.safety_gap),
+        ("sim.time_headway", c.sim.time_headway),
         ("sim.merge_gate", flag(c.sim.merge_gate)),
         ("sim.b_safe", c.sim.b_safe),
         ("sim.project_non_learning", flag(c.sim.project_non_learning)),

@@ -964,15 +964,7 @@ fn ramp_leader_bound(cars: &[Car], j: usize, scene_leader: Option<usize>, rules:
         v: me.v,
         present: 0.0,
     };
-    let (_, hi) = feasible_interval(
-        &me.x,
-        &me.v,
-        &leader,
-        &none,
-        rules.clearance(),
-        rules.dt,
-        rules.tau_s,
-    );
+    let (_, hi) = feasible_interval(&me.x, &me.v, &leader, &none, &rules.projection());
     Some(hi)
 }
 

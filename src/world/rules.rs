@@ -9,6 +9,7 @@ use crate::config::Config;
 use crate::world::dynamics::Axles;
 use crate::world::geometry::Road;
 use crate::world::merge_gate::{GateRules, lane_change_is_safe};
+use crate::world::safety::Projection;
 use crate::world::state::Scene;
 
 /// Everything a step of the world reads from the configuration.
@@ -32,6 +33,8 @@ pub struct WorldRules {
     pub v_max: f64,
     /// Time-to-collision horizon `tau_s` of the feasibility projection (s).
     pub tau_s: f64,
+    /// Time gap of the feasibility projection (s; `sim.time_headway`).
+    pub time_headway: f64,
     /// Whether the merge gate holds ramp vehicles when the feasibility rules are on.
     pub merge_gate: bool,
     /// The merge gate's parameters (clearance, braking, horizon).
@@ -55,6 +58,7 @@ impl WorldRules {
             v_min: veh.v_min,
             v_max: veh.v_max,
             tau_s: config.sim.tau_s,
+            time_headway: config.sim.time_headway,
             merge_gate: config.sim.merge_gate,
             gate: GateRules::new(config),
         }
@@ -63,6 +67,16 @@ impl WorldRules {
     /// Gap subtracted from centre distances: vehicle length plus the safety gap (m).
     pub fn clearance(&self) -> f64 {
         self.gate.clearance
+    }
+
+    /// The feasibility projection's parameters.
+    pub fn projection(&self) -> Projection {
+        Projection {
+            clearance: self.clearance(),
+            time_headway: self.time_headway,
+            dt: self.dt,
+            tau_s: self.tau_s,
+        }
     }
 
     /// Conflict point `x_c` (m).

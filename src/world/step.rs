@@ -69,7 +69,7 @@ pub fn applied_action(
     if feasibility {
         let lead = neighbor_of(scene, nb.lane_leader, me);
         let follow = neighbor_of(scene, nb.lane_follower, me);
-        let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, rules.clearance(), dt, rules.tau_s);
+        let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, &rules.projection());
         a = project_feasible(&a, &lo, &hi);
     }
     if feasibility && (rules.merge_gate || scene.is_human(i)) && gate_holds(scene, i, &rules.gate) {
