@@ -25,7 +25,8 @@
 //! stream's speed, and a follower's speed cap gives up `h v` of its headway, `v <= (v_ahead +
 //! h_c / min_ttc) / (1 + h / min_ttc)` for a centre headway `h_c`. Drawn without it, the
 //! target lane started far inside the time gaps it then had to open (7 m centre headways at
-//! 8-20 m/s), and training's probe potential did not improve in 90 epochs (measured).
+//! 8-20 m/s), and training's probe potential did not improve in 90 epochs (measured with an
+//! earlier form of the projection; `docs/traffic_acceptance.md`, section 0a).
 //!
 //! With `desired_speed`, the scene's desired speed `v_d` is drawn first, uniform in its range,
 //! and every speed range above (streams, spreads' bounds, the ego's strata) is scaled by
@@ -65,6 +66,15 @@ impl Spacing {
             cap / (1.0 + self.time_headway / self.min_ttc)
         } else {
             cap
+        }
+    }
+
+    /// The least speed of a vehicle `h` ahead of one at `v`: `v` is within its speed cap.
+    fn least_ahead(&self, v: f64, h: f64) -> f64 {
+        if self.time_headway > 0.0 {
+            v * (1.0 + self.time_headway / self.min_ttc) - h / self.min_ttc
+        } else {
+            v - h / self.min_ttc
         }
     }
 }
@@ -160,13 +170,9 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
         if x + h >= x_c - RAMP_END_MARGIN {
             break;
         }
-        // Ahead of a vehicle at v: fast enough that v is within its follower's speed cap.
-        let least = if rules.time_headway > 0.0 {
-            v * (1.0 + rules.time_headway / p.min_ttc) - h / p.min_ttc
-        } else {
-            v - h / p.min_ttc
-        };
-        let v_ahead = ramp.speed(&mut rng, ramp_speed, &rules, None).max(least);
+        let v_ahead = ramp
+            .speed(&mut rng, ramp_speed, &rules, None)
+            .max(rules.least_ahead(v, h));
         x += h;
         v = v_ahead;
         ramp_ahead.push(car(x, v, true));
@@ -222,6 +228,25 @@ mod tests {
         config
     }
 
+    /// A vehicle's position and speed.
+    type State = (f64, f64);
+
+    /// Each lane's successive vehicles, `(on_ramp, (x, v) ahead, (x, v) behind)`.
+    fn successive_pairs(s: &Scene) -> Vec<(bool, State, State)> {
+        let mut pairs = Vec::new();
+        for lane in [true, false] {
+            let mut xs: Vec<State> = s
+                .vehicles
+                .iter()
+                .filter(|v| v.on_ramp == lane)
+                .map(|v| (v.x, v.v))
+                .collect();
+            xs.sort_by(|a, b| b.0.total_cmp(&a.0));
+            pairs.extend(xs.windows(2).map(|w| (lane, w[0], w[1])));
+        }
+        pairs
+    }
+
     #[test]
     fn traffic_scenes_hold_both_streams_in_order_with_safe_headways() {
         let config = traffic_config();
@@ -238,19 +263,10 @@ mod tests {
             assert_eq!(ramp.len(), t.ramp_vehicles);
             assert!(ramp.iter().all(|v| v.x < x_c - RAMP_END_MARGIN + 1e-9));
             ramp_leaders += usize::from(ramp.iter().any(|v| v.x > s.ego().x));
-            for lane in [true, false] {
-                let mut xs: Vec<(f64, f64)> = s
-                    .vehicles
-                    .iter()
-                    .filter(|v| v.on_ramp == lane)
-                    .map(|v| (v.x, v.v))
-                    .collect();
-                xs.sort_by(|a, b| b.0.total_cmp(&a.0));
-                for w in xs.windows(2) {
-                    let (h, closing) = (w[0].0 - w[1].0, w[1].1 - w[0].1);
-                    assert!(h >= config.sampling.headway[0] - 1e-9, "headway {h}");
-                    assert!(closing <= h / config.sampling.min_ttc + 1e-9, "TTC below min");
-                }
+            for (_, (x_ahead, v_ahead), (x, v)) in successive_pairs(&s) {
+                let (h, closing) = (x_ahead - x, v - v_ahead);
+                assert!(h >= config.sampling.headway[0] - 1e-9, "headway {h}");
+                assert!(closing <= h / config.sampling.min_ttc + 1e-9, "TTC below min");
             }
         }
         // Some egos start behind another ramp vehicle, and humans are mixed in.
@@ -270,23 +286,14 @@ mod tests {
         let mut shortest = f64::INFINITY;
         for k in 0..200 {
             let s = sample_traffic_scene(&config, &t, 7, k);
-            for lane in [true, false] {
-                let mut xs: Vec<(f64, f64)> = s
-                    .vehicles
-                    .iter()
-                    .filter(|v| v.on_ramp == lane)
-                    .map(|v| (v.x, v.v))
-                    .collect();
-                xs.sort_by(|a, b| b.0.total_cmp(&a.0));
-                for w in xs.windows(2) {
-                    let (h_c, v_ahead, v) = (w[0].0 - w[1].0, w[0].1, w[1].1);
-                    assert!(
-                        h_c - v >= 4.0 * (v - v_ahead) - 1e-9,
-                        "{h_c} m at {v} behind {v_ahead}"
-                    );
-                    if !lane {
-                        shortest = shortest.min(h_c);
-                    }
+            for (on_ramp, (x_ahead, v_ahead), (x, v)) in successive_pairs(&s) {
+                let h_c = x_ahead - x;
+                assert!(
+                    h_c - v >= 4.0 * (v - v_ahead) - 1e-9,
+                    "{h_c} m at {v} behind {v_ahead}"
+                );
+                if !on_ramp {
+                    shortest = shortest.min(h_c);
                 }
             }
         }
@@ -297,12 +304,9 @@ mod tests {
         // Without the time gap the same scenes are packed closer.
         config.sim.time_headway = 0.0;
         let packed = (0..200)
-            .flat_map(|k| {
-                let s = sample_traffic_scene(&config, &t, 7, k);
-                let mut xs: Vec<f64> = s.vehicles.iter().filter(|v| !v.on_ramp).map(|v| v.x).collect();
-                xs.sort_by(|a, b| b.total_cmp(a));
-                xs.windows(2).map(|w| w[0] - w[1]).collect::<Vec<_>>()
-            })
+            .flat_map(|k| successive_pairs(&sample_traffic_scene(&config, &t, 7, k)))
+            .filter(|(on_ramp, _, _)| !on_ramp)
+            .map(|(_, ahead, behind)| ahead.0 - behind.0)
             .fold(f64::INFINITY, f64::min);
         assert!(packed < 10.0, "{packed}");
     }
