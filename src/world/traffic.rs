@@ -58,24 +58,21 @@ struct Spacing {
 }
 
 impl Spacing {
+    /// `1 + h / min_ttc`: how much more a follower's own speed weighs in its cap than its
+    /// leader's (exactly 1 without a time gap, so the cap is then the paper sampler's).
+    fn own_speed_weight(&self) -> f64 {
+        1.0 + self.time_headway / self.min_ttc
+    }
+
     /// The speed of a vehicle `h` (centre to centre) behind one at `v_ahead` may be at most
     /// this.
     fn speed_cap(&self, v_ahead: f64, h: f64) -> f64 {
-        let cap = v_ahead + h / self.min_ttc;
-        if self.time_headway > 0.0 {
-            cap / (1.0 + self.time_headway / self.min_ttc)
-        } else {
-            cap
-        }
+        (v_ahead + h / self.min_ttc) / self.own_speed_weight()
     }
 
     /// The least speed of a vehicle `h` ahead of one at `v`: `v` is within its speed cap.
     fn least_ahead(&self, v: f64, h: f64) -> f64 {
-        if self.time_headway > 0.0 {
-            v * (1.0 + self.time_headway / self.min_ttc) - h / self.min_ttc
-        } else {
-            v - h / self.min_ttc
-        }
+        v * self.own_speed_weight() - h / self.min_ttc
     }
 }
 
