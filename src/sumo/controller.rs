@@ -49,13 +49,14 @@
 //! the target lane next to it: from there on every scene counts it in the target lane, where
 //! the policy was trained to see it, whether SUMO has moved it yet or not, except that the
 //! target-lane vehicle beside it passes it (`pass_beside_waiting`), and it keeps
-//! [`WAITING_MARGIN`] more to its neighbours so that SUMO finds the gap it needs. With
+//! [`WAITING_MARGIN`] more to its neighbours so that SUMO finds the gap it needs (unless the
+//! projection keeps a time gap, `sim.time_headway`, which does that itself). With
 //! `merge.toml`'s `merge_from` it is told so earlier, at the first step from there on where
 //! the lane change is safe (as the traffic world's `scenario.merge_zone`), and with a traffic
 //! policy the scenes count it in the target lane from `merge_from` on: the vehicles behind
 //! it make room for it, as SUMO's drivers do for a vehicle that signals a merge. Around a
 //! waiting vehicle, the car behind keeps the margin too, a car within the clearance beside it
-//! passes it, the ramp vehicles behind it keep the projection's TTC to it, and past x_c it
+//! passes it, the ramp vehicles behind it keep the projection's TTC to it, and it
 //! prepares to stop at the acceleration lane's end ([`LANE_END_BRAKE`]). These rules for
 //! waiting vehicles apply only where SUMO may hold a lane change back (lane-change mode bits
 //! 8-9); in [`ControlModes::EXACT`] nothing waits and the internal world's rules hold. Target-lane players keep SUMO's own lane changes
@@ -269,10 +270,11 @@ pub const PLAYER_COLOUR: [u8; 3] = [255, 150, 0];
 /// this margin).
 pub const WAITING_MARGIN: f64 = 2.0;
 
-/// Deceleration (m/s^2) at which a ramp vehicle waiting past the conflict point prepares to
-/// stop at the acceleration lane's end ([`Controller`]'s `lane_end_bound`). Measured on
+/// Deceleration (m/s^2) at which a ramp vehicle waiting for its lane change prepares to stop
+/// at the acceleration lane's end ([`Controller`]'s `lane_end_bound`). Measured on
 /// `i80_merge` (every grid deployment at demand 1.2): 1.0 and 3.5 left more egos in an SSM
-/// conflict or slower than 2.0 did.
+/// conflict or slower than 2.0 did; on `single_lane_merge` without SUMO's safe speed, 4.0
+/// gave the same grid rows as 2.0.
 pub const LANE_END_BRAKE: f64 = 2.0;
 
 impl Controller {
@@ -857,26 +859,37 @@ impl Controller {
     /// bumper gap of `sim.safety_gap` only, below what SUMO needs for the lane change, and
     /// the two drove side by side to the acceleration lane's end (`i80_merge`, the game,
     /// demand 1.0, SUMO seed 2: 13% of the egos in an SSM conflict, 7% with it; section 0y
-    /// of docs/traffic_acceptance.md).
+    /// of docs/traffic_acceptance.md). With a time gap in the projection
+    /// (`sim.time_headway`) there is no margin: the gap settles at `safety_gap + h v`, above
+    /// SUMO's `minGap` at any speed but a crawl, and the margin only held the egos back
+    /// (`i80_merge`, demand 1.2, no SUMO safe speed: ego only at 0.83-0.87 of SUMO's
+    /// drivers' speed with it, 0.86-0.87 without; section 0g).
     fn rules_for(&self, car: &Car, lane_leader: Option<&Car>) -> WorldRules {
         let mut rules = self.rules;
-        if self.waits(car) || lane_leader.is_some_and(|l| self.waits(l)) {
+        let near_waiting = self.waits(car) || lane_leader.is_some_and(|l| self.waits(l));
+        if near_waiting && rules.time_headway == 0.0 {
             rules.gate.clearance += WAITING_MARGIN;
         }
         rules
     }
 
-    /// The largest action that lets a ramp vehicle waiting past the conflict point stop at
-    /// the acceleration lane's end braking at [`LANE_END_BRAKE`], but never more than
-    /// `sim.b_safe` (none for other vehicles, when SUMO makes lane changes at once, or when
-    /// the network's lane end is unknown).
+    /// The largest action that lets a ramp vehicle waiting for its lane change (past its
+    /// scene entry, [`Car::is_waiting`]) stop at the acceleration lane's end braking at
+    /// [`LANE_END_BRAKE`], but never more than `sim.b_safe` (none for other vehicles, when
+    /// SUMO makes lane changes at once, or when the network's lane end is unknown).
     /// The internal world has no lane end (a ramp vehicle is in the target lane from x_c on);
     /// in SUMO a waiting ego that reached the end at speed was braked there by SUMO's safe
     /// speed at 4.5 m/s^2, and the ramp vehicle behind it closed in at a TTC below 3 s
     /// (`i80_merge`, the game, demand 1.2: most of the 16-22% of egos in an SSM conflict).
+    /// Without SUMO's safe speed (speed mode 0) nothing brakes it there: an ego level with
+    /// a target-lane car from `merge_from` on reached the end at 13 m/s, stood still at
+    /// once, and changed lanes in front of a car closing at 19 m/s (`single_lane_merge`,
+    /// demand 1.2). So the bound holds from the scene entry on, not from x_c on: a waiting
+    /// vehicle slows as it nears the end and falls behind the car beside it, as SUMO's
+    /// drivers do.
     fn lane_end_bound(&self, car: &Car, rules: &WorldRules) -> Option<f64> {
         let end = self.lane_end?;
-        if !self.waits(car) || car.x < rules.conflict_point() {
+        if !self.waits(car) {
             return None;
         }
         let mut stop = rules.gate;
@@ -1148,6 +1161,18 @@ mod tests {
         let act = |car: &Car| applied_action(&c.rules_for(car, None), true, &scene, 0, &nb[0], 0.0);
         assert!(act(&merged).abs() < 1e-9);
         assert!((act(&waiting) + 20.0 / 3.0).abs() < 1e-9, "{}", act(&waiting));
+        // With a 1 s time gap the projection asks the gap itself and there is no margin: the
+        // leader 15 m ahead, v' <= (10 + (15 - 7) / 3) / (1 + 1 / 3) = 9.5, a <= -5 m/s^2,
+        // waiting or merged (with the margin, (10 + 6 / 3) / (4 / 3) = 9: -10).
+        let mut c = c;
+        c.rules.time_headway = 1.0;
+        let scene = Scene::new(vec![
+            merged.vehicle(3.66),
+            car("lead", 195.0, 10.0, false).vehicle(3.66),
+        ]);
+        let act = |car: &Car| applied_action(&c.rules_for(car, None), true, &scene, 0, &nb[0], 0.0);
+        assert!((act(&merged) + 5.0).abs() < 1e-9, "{}", act(&merged));
+        assert!((act(&waiting) + 5.0).abs() < 1e-9, "{}", act(&waiting));
     }
 
     #[test]
@@ -1199,7 +1224,7 @@ mod tests {
     }
 
     #[test]
-    fn a_waiting_ego_past_x_c_prepares_to_stop_at_the_lane_end() {
+    fn a_waiting_ego_prepares_to_stop_at_the_lane_end() {
         // Lane end at 222 m: a 5 m car's centre stops at 219.5 m less the gate's 0.1 m margin.
         // At 193 m and 10 m/s, one step on 25.4 m remain: v' = sqrt(2 * 2 * 25.4 + 0.2^2) - 0.2
         // = 9.8817, a = -1.1833 m/s^2. At 195 m the bound asks -5.23, floored at b_safe's -4.
@@ -1210,8 +1235,14 @@ mod tests {
         let a = bound(&c, &waiting(193.0)).unwrap();
         assert!((a + 1.183_334_7).abs() < 1e-6, "{a}");
         assert_eq!(bound(&c, &waiting(195.0)), Some(-4.0));
-        // Before x_c (the merge zone, as trained), merged, or with no known lane end: none.
-        assert_eq!(bound(&c, &waiting(175.0)), None);
+        // Before x_c but waiting (a traffic policy's scene entry at merge_from): at 150 m and
+        // 10 m/s, 69.4 m remain, more than the 25 m a stop at 2 m/s^2 needs: the bound is
+        // above the largest action. At 170 m and 13.8 m/s it binds: one step on 48.02 m
+        // remain, v' = sqrt(4 * 48.02 + 0.04) - 0.2 = 13.6607, a = -1.3926 m/s^2.
+        assert!(bound(&c, &waiting(150.0)).unwrap() > c.rules.max_accel);
+        let a = bound(&c, &waiting_car("W", 170.0, 13.8)).unwrap();
+        assert!((a + 1.392_640_9).abs() < 1e-6, "{a}");
+        // Merged, or with no known lane end: none.
         assert_eq!(bound(&c, &car("W", 193.0, 10.0, false)), None);
         c.lane_end = None;
         assert_eq!(bound(&c, &waiting(193.0)), None);
