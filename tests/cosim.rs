@@ -232,8 +232,9 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
     // Ramp vehicles merge early as the traffic world's do: from merge_zone before x_c.
     geometry.merge_from = Some(geometry.conflict_point - config.scenario.merge_zone);
     let steps = 100;
-    // The first two episodes that stay on the network and run 10 s without a collision (an
-    // internal episode ends at its first one).
+    // The first two episodes that stay on the network (single_lane_merge's last edge ends at
+    // x = 600 m, where SUMO takes a vehicle off), run 10 s without a collision (an internal
+    // episode ends at its first one) and include a merge (a ramp vehicle past x_c).
     let episodes: Vec<(Scene, Vec<Vec<f64>>)> = sample_scenes(&config, 5, 0, 60)
         .into_iter()
         .filter(|s| {
@@ -245,7 +246,17 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
         .filter_map(|mut s| {
             s.humans.clear();
             let (internal, ran) = internal_tracks(&config, TRAFFIC_POLICY, &s, steps);
-            (ran == steps).then_some((s, internal))
+            let on_network = internal
+                .iter()
+                .flatten()
+                .all(|&x| x + 0.5 * config.vehicle.length < 599.0);
+            let merges = |last: &[f64]| {
+                last.iter()
+                    .zip(&s.vehicles)
+                    .any(|(x, v)| v.on_ramp && *x >= config.scenario.conflict_point)
+            };
+            let kept = ran == steps && on_network && merges(&internal[steps - 1]);
+            kept.then_some((s, internal))
         })
         .take(2)
         .collect();
@@ -263,15 +274,7 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
             .zip(&sumo)
             .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
             .fold(0.0, f64::max);
-        let merged = internal[ran - 1]
-            .iter()
-            .zip(&scene.vehicles)
-            .filter(|(x, v)| v.on_ramp && **x >= config.scenario.conflict_point)
-            .count();
-        eprintln!(
-            "traffic episode: {merged} egos merged, worst |dx| over 13 vehicles and 10 s = {worst:.3e} m"
-        );
-        assert!(merged >= 1, "the comparison includes a merge");
+        eprintln!("traffic episode: worst |dx| over 13 vehicles and 10 s = {worst:.3e} m");
         assert!(worst < 0.5, "worst {worst} m");
     }
 }
