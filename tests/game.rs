@@ -256,6 +256,8 @@ fn a_ramp_speed_weight_weighs_a_ramp_vehicles_speed_term_alone() {
     // ramp weight from w_speed = 1 to 3 adds 2 * -(10 - 15)^2 = -50 to the ramp vehicle's
     // reward and to the potential; the target-lane vehicle's reward does not move.
     let mut config = common::traffic();
+    config.reward.w_speed = 1.0;
+    config.reward.w_speed_ramp = None; // w_speed (configs/traffic.toml sets 2)
     let vehicles = [car(150.0, 10.0, true), car(170.0, 12.0, false)];
     let u = [0.5, -1.0];
     let step = |config: &mpgdrive::config::Config| {
