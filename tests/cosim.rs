@@ -25,6 +25,8 @@ static SUMO: Mutex<()> = Mutex::new(());
 const NET: &str = "sumo_nets/single_lane_merge";
 const POLICY: &str = "policies/mpg/seed0";
 const TRAFFIC_POLICY: &str = "policies/traffic/mpg/seed0";
+/// Where `single_lane_merge`'s last edge ends (network x, m): SUMO takes a vehicle off there.
+const NET_END: f64 = 600.0;
 
 /// Where a vehicle whose centre is at `x` departs: (route, lane, position of the front bumper
 /// on the route's first edge). Edge starts: main and ramp -200, merge 100, out 200.
@@ -232,9 +234,9 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
     // Ramp vehicles merge early as the traffic world's do: from merge_zone before x_c.
     geometry.merge_from = Some(geometry.conflict_point - config.scenario.merge_zone);
     let steps = 100;
-    // The first two episodes that stay on the network (single_lane_merge's last edge ends at
-    // x = 600 m, where SUMO takes a vehicle off), run 10 s without a collision (an internal
-    // episode ends at its first one) and include a merge (a ramp vehicle past x_c).
+    // The first two episodes that stay on the network (front bumpers short of NET_END), run
+    // 10 s without a collision (an internal episode ends at its first one) and include a merge
+    // (a ramp vehicle past x_c).
     let episodes: Vec<(Scene, Vec<Vec<f64>>)> = sample_scenes(&config, 5, 0, 60)
         .into_iter()
         .filter(|s| {
@@ -249,7 +251,7 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
             let on_network = internal
                 .iter()
                 .flatten()
-                .all(|&x| x + 0.5 * config.vehicle.length < 599.0);
+                .all(|&x| x + 0.5 * config.vehicle.length < NET_END - 1.0);
             let merges = |last: &[f64]| {
                 last.iter()
                     .zip(&s.vehicles)
