@@ -45,9 +45,10 @@ pub struct CosimArgs {
     /// 0: the policy's speed exactly, as the internal simulator).
     #[arg(long, default_value_t = 25)]
     speed_mode: i32,
-    /// SUMO lane-change mode of controlled vehicles (256: the merge waits while it would
-    /// collide at once; 0: it happens at the conflict point whatever is there).
-    #[arg(long, default_value_t = 256)]
+    /// SUMO lane-change mode of controlled ramp vehicles (257: the merge waits while it would
+    /// collide at once, and SUMO's strategic lane changes signal it, so SUMO's drivers make
+    /// room; 256: the first only; 0: it happens at the conflict point whatever is there).
+    #[arg(long, default_value_t = 257)]
     lane_change_mode: i32,
     /// SUMO lane-change mode of the target-lane players the policy drives (1621, SUMO's
     /// default: they change lanes as SUMO's drivers do, leaving the game when they leave the

@@ -38,8 +38,10 @@
 //!
 //! Vehicles the controller drives get the SUMO speed and lane-change modes of
 //! [`ControlModes`]: by default speed mode 25 (SUMO's safe speed towards any leader, but not
-//! its acceleration limits: the policy's actions up to g apply) and lane-change mode 256 (no
-//! lane changes of their own; a requested change waits while it would collide at once).
+//! its acceleration limits: the policy's actions up to g apply) and lane-change mode 257 (a
+//! requested change waits while it would collide at once, and SUMO's strategic lane changes:
+//! a ramp vehicle that must leave its lane signals, SUMO's drivers make room for it, and SUMO
+//! may move it into a gap its own model accepts; [`ControlModes::lane_change`]).
 //! [`ControlModes::EXACT`] (0 and 0) applies every action and lane change as the internal
 //! simulator does. The games hold one ramp vehicle and target-lane players, so SUMO's safety
 //! checks are what stands between a controlled vehicle and the traffic outside its game
@@ -96,8 +98,14 @@ pub const SUMO_LANE_CHANGE_MODE: i32 = 1621;
 pub struct ControlModes {
     /// Speed mode bits (1 safe speed, 2 max accel, 4 max decel, 8 right of way, 16 red light).
     pub speed: i32,
-    /// Lane-change mode bits of the ramp vehicles it drives (256: a TraCI lane change avoids
-    /// immediate collisions).
+    /// Lane-change mode bits of the ramp vehicles it drives. 257 (the default): a TraCI lane
+    /// change avoids immediate collisions (256), and SUMO's strategic lane changes where they
+    /// do not conflict with a TraCI request (1): an ego on a lane that ends signals, so SUMO's
+    /// drivers in the target lane make room for it, and SUMO may change it into a gap its
+    /// lane-change model accepts. With 256 alone the egos did not signal, nobody made room,
+    /// and on `single_lane_merge` at demand 1.2 an ego braking for the lane's end beside the
+    /// 17 m/s lane was moved at x_c in front of a car closing at 8.6 m/s (12-15% of the egos
+    /// in an SSM conflict against 0% with 257; docs/traffic_acceptance.md section 0f).
     pub lane_change: i32,
     /// Lane-change mode bits of the target-lane players it drives (1621, SUMO's default: they
     /// keep SUMO's own lane changes, so a player may move out of the target lane as SUMO's
@@ -107,11 +115,11 @@ pub struct ControlModes {
 }
 
 impl ControlModes {
-    /// The default: SUMO's safe speed, collision-free requested lane changes, and SUMO's own
-    /// lane changes for target-lane players.
+    /// The default: SUMO's safe speed, collision-free requested lane changes with SUMO's
+    /// strategic ones for ramp vehicles, and SUMO's own lane changes for target-lane players.
     pub const SAFE: ControlModes = ControlModes {
         speed: 25,
-        lane_change: 256,
+        lane_change: 257,
         player_lane_change: SUMO_LANE_CHANGE_MODE,
     };
     /// No SUMO checks: every action and lane change applies as in the internal simulator.

@@ -391,8 +391,8 @@ pub struct Shields {
     pub merge_gate: bool,
     /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed; 0: none).
     pub speed_mode: i32,
-    /// SUMO lane-change mode of controlled vehicles (256: a merge waits while it would collide
-    /// at once; 0: none).
+    /// SUMO lane-change mode of controlled ramp vehicles (257: a merge waits while it would
+    /// collide at once, with SUMO's strategic lane changes; 0: none).
     pub lane_change_mode: i32,
     /// SUMO lane-change mode of controlled target-lane players (1621: SUMO's own lane
     /// changes; 0: none).
