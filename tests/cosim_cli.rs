@@ -552,3 +552,90 @@ fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
     assert!(roxmltree::Document::parse(&ssm).is_ok());
     assert!(!runs[0]["egos"].as_array().unwrap().is_empty());
 }
+
+#[test]
+fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
+    // `single_lane_merge` at demand 1.2 (routes seed 0), ego only, without SUMO's safe speed
+    // (docs/traffic_acceptance.md section 0f). With lane-change mode 256 the egos neither
+    // signal nor change lanes on their own: `onramp.17` braked for the lane's end beside the
+    // 17 m/s lane and was moved at x_c in front of a car closing at 8.6 m/s (TTC 1.3 s), and a
+    // second ego met the same within 200 s. With 257 (`cosim`'s default) that car slowed for
+    // it, it changed lanes 51 m before x_c, and no ego had a conflict.
+    let dir = temp_dir("signal");
+    let routes = dir.join("routes");
+    let out = bin()
+        .args([
+            "routes",
+            "--base",
+            "sumo_nets/single_lane_merge/merge.rou.xml",
+            "--merge",
+            "sumo_nets/single_lane_merge/merge.toml",
+            "--scales",
+            "1.2",
+            "--seeds",
+            "0",
+            "--duration",
+            "900",
+            "--out",
+        ])
+        .arg(&routes)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let merge = dir.join("merge.toml");
+    let toml = std::fs::read_to_string("sumo_nets/single_lane_merge/merge.toml").unwrap();
+    let ego_only: String = toml
+        .lines()
+        .map(|l| {
+            if l.starts_with("players") {
+                "players = \"controllable\""
+            } else {
+                l
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(&merge, ego_only + "\n").unwrap();
+    let run = |mode: Option<&str>| {
+        let routes = routes.join("merge_d1.20_s0.rou.xml");
+        let mut args = vec![
+            "--controllers",
+            "mpg",
+            "--route-files",
+            routes.to_str().unwrap(),
+            "--merge",
+            merge.to_str().unwrap(),
+            "--speed-mode",
+            "0",
+            "--end",
+            "200",
+            "--no-diagrams",
+        ];
+        args.extend(mode.map(|m| ["--lane-change-mode", m]).into_iter().flatten());
+        let (runs, _) = common::cosim_json(&args, Path::new(CFG), &dir.join(mode.unwrap_or("default")));
+        runs[0].clone()
+    };
+    let in_conflict = |run: &serde_json::Value| -> Vec<String> {
+        run["egos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|e| !e["ssm_min_ttc"].is_null() || !e["ssm_max_drac"].is_null())
+            .map(|e| e["id"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let silent = run(Some("256"));
+    assert_eq!(silent["shields"]["lane_change_mode"], 256);
+    let conflicts = in_conflict(&silent);
+    assert!(conflicts.contains(&"onramp.17".to_string()), "{conflicts:?}");
+    assert_eq!(conflicts.len(), 2, "{conflicts:?}");
+    let signalling = run(None);
+    assert_eq!(signalling["shields"]["lane_change_mode"], 257);
+    assert_eq!(signalling["shields"]["speed_mode"], 0);
+    assert_eq!(in_conflict(&signalling), Vec::<String>::new());
+    assert_eq!(
+        signalling["egos"].as_array().unwrap().len(),
+        silent["egos"].as_array().unwrap().len(),
+        "the same egos"
+    );
+}
