@@ -36,26 +36,26 @@ fn grid(preset: Preset, v_d: f64) -> Vec<PresetState> {
         Preset::One => [
             &[10.0, 12.0, 14.0],
             &[5.0, 10.0, 15.0],
-            &[5.0, 10.0, 15.0, 20.0, 30.0, 50.0, 80.0],
+            &[5.0, 10.0, 15.0, 20.0, 30.0, 50.0, 80.0, 120.0, 160.0],
             &[9.0, 11.0, 13.0],
             &[15.0, 16.0, 18.0],
         ],
         Preset::Two => [
             &[8.0, 10.0, 12.0],
             &[10.0, 20.0],
-            &[20.0, 30.0, 40.0],
+            &[20.0, 30.0, 40.0, 60.0, 90.0, 130.0],
             &[10.0, 12.0, 14.0],
             &[14.0, 16.0, 18.0],
         ],
     };
     let mut out = Vec::new();
-    for &ego_before in &[60.0, 80.0, 100.0] {
+    for &ego_before in &[30.0, 45.0, 60.0, 80.0, 100.0] {
         for &ego_speed in ego_speeds {
             for &gap_ahead in aheads {
                 for &gap_behind in behinds {
                     for &leader_speed in leaders {
                         for &follower_speed in followers {
-                            for &headway in &[10.0, 14.0, 20.0] {
+                            for &headway in &[10.0, 14.0, 20.0, 30.0] {
                                 let s = PresetState {
                                     ego_before,
                                     ego_speed,

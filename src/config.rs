@@ -198,12 +198,23 @@ pub struct RewardConfig {
     /// default false: the paper's `T = |x - x_c| / (v + eps)` on both sides of `x_c`).
     #[serde(default)]
     pub conflict_ends_at_x_c: bool,
+    /// With `conflict_ends_at_x_c`, how far past `x_c` (m) the first vehicle must be before
+    /// the pair's term ends (ours; default 0). Until then `|x - x_c|` still counts it, so a
+    /// vehicle reaching `x_c` just behind another, bodies overlapping, is still penalised.
+    #[serde(default)]
+    pub conflict_clearance: f64,
 }
 
 impl RewardConfig {
     /// The speed-tracking weight of a vehicle on the ramp (`w_speed_ramp`, else `w_speed`).
     pub fn speed_weight_on_ramp(&self) -> f64 {
         self.w_speed_ramp.unwrap_or(self.w_speed)
+    }
+
+    /// How far past `x_c` (m) a different-lane pair's conflict term ends: `conflict_clearance`
+    /// with `conflict_ends_at_x_c`, else `None` (the paper's: never).
+    pub fn conflict_end(&self) -> Option<f64> {
+        self.conflict_ends_at_x_c.then_some(self.conflict_clearance)
     }
 }
 
@@ -488,6 +499,7 @@ impl Config {
         non_negative("reward.v_desired", r.v_desired)?;
         positive("reward.v_c", r.v_c)?;
         positive("reward.epsilon", r.epsilon)?;
+        non_negative("reward.conflict_clearance", r.conflict_clearance)?;
         for (key, w) in [
             ("reward.w_speed", r.w_speed),
             ("reward.w_comfort", r.w_comfort),

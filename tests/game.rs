@@ -59,7 +59,7 @@ fn conflict_time_gap_term_eq_28() {
 #[test]
 fn the_conflict_term_can_end_at_the_conflict_point() {
     // Both before x_c: eq. (28) as above.
-    let r = conflict_time_gap_before(&150.0, &10.0, &160.0, &15.0, 180.0, 0.1);
+    let r = conflict_time_gap_before([&150.0, &10.0, &160.0, &15.0], 180.0, 0.0, 0.1);
     assert_abs_diff_eq!(r, -0.182_731_493_509_931_56, epsilon = 1e-12);
     // The target-lane car 10 m past x_c at 10.1 m/s and the ramp vehicle 10 m before it at
     // 10.1 m/s: the paper's |x - x_c| gives both T = 10 / 10.2 s, the largest penalty -1 / eps;
@@ -70,11 +70,22 @@ fn the_conflict_term_can_end_at_the_conflict_point() {
         epsilon = 1e-9
     );
     assert_eq!(
-        conflict_time_gap_before(&170.0, &10.1, &190.0, &10.1, 180.0, 0.1),
+        conflict_time_gap_before([&170.0, &10.1, &190.0, &10.1], 180.0, 0.0, 0.1),
         0.0
     );
     assert_eq!(
-        conflict_time_gap_before(&190.0, &10.1, &170.0, &10.1, 180.0, 0.1),
+        conflict_time_gap_before([&190.0, &10.1, &170.0, &10.1], 180.0, 0.0, 0.1),
+        0.0
+    );
+    // With a clearance of 12 m the car 10 m past x_c still counts (the same -1 / eps), and one
+    // 13 m past (T = 13 / 10.2 s on both sides) no longer does.
+    assert_abs_diff_eq!(
+        conflict_time_gap_before([&170.0, &10.1, &190.0, &10.1], 180.0, 12.0, 0.1),
+        -10.0,
+        epsilon = 1e-9
+    );
+    assert_eq!(
+        conflict_time_gap_before([&167.0, &10.1, &193.0, &10.1], 180.0, 12.0, 0.1),
         0.0
     );
 }
@@ -282,6 +293,7 @@ fn check_mpg_passes_merge_traffic_with_the_reward_options() {
     config.sim.horizon = 10.0;
     config.reward.w_speed_ramp = Some(3.0);
     config.reward.conflict_ends_at_x_c = true;
+    config.reward.conflict_clearance = 10.0;
     let report = check_mpg(&config, &settings(true), &PaperReward::new(&config), &mut || {});
     assert!(report.max_relative_gap < 1e-9, "gap {}", report.max_relative_gap);
 }

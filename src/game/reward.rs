@@ -77,8 +77,8 @@ pub struct PaperReward {
     pub weights: [f64; 4],
     /// Speed-tracking weight of a vehicle on the ramp.
     pub w_speed_ramp: f64,
-    /// The conflict term ends once either vehicle has passed `x_c`.
-    pub conflict_ends_at_x_c: bool,
+    /// How far past `x_c` the conflict term ends ([`crate::config::RewardConfig::conflict_end`]).
+    pub conflict_end: Option<f64>,
 }
 
 impl PaperReward {
@@ -92,7 +92,7 @@ impl PaperReward {
             conflict_point: config.scenario.conflict_point,
             weights: [r.w_speed, r.w_comfort, r.w_ttc, r.w_conflict],
             w_speed_ramp: r.speed_weight_on_ramp(),
-            conflict_ends_at_x_c: r.conflict_ends_at_x_c,
+            conflict_end: r.conflict_end(),
         }
     }
 
@@ -139,7 +139,8 @@ impl PairReward for PaperReward {
                 conflict: 0.0,
             }
         } else {
-            let conflict = terms::conflict_term(self.conflict_ends_at_x_c)(
+            let conflict = terms::conflict_term(
+                self.conflict_end,
                 &a.x,
                 &a.v,
                 &b.x,

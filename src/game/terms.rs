@@ -57,12 +57,20 @@ pub fn conflict_time_gap<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, e
         .neg()
 }
 
-/// [`conflict_time_gap`] while both vehicles are before the conflict point, 0 once either has
-/// passed it (`reward.conflict_ends_at_x_c`, ours): a vehicle past `x_c` has no conflict there to
-/// come, while `|x - x_c|` has its time grow again, so a ramp vehicle still before `x_c` met
-/// each target-lane vehicle that had passed once more, at `T_i = T_j`. Still symmetric.
-pub fn conflict_time_gap_before<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
-    let passed = x_i.max(x_j).gt_c(x_c);
+/// [`conflict_time_gap`] until either vehicle is more than `clearance` (m) past the conflict
+/// point, 0 from then on (`reward.conflict_ends_at_x_c` and `reward.conflict_clearance`, ours):
+/// a vehicle past `x_c` has no conflict there to come, while `|x - x_c|` has its time grow
+/// again, so a ramp vehicle still before `x_c` met each target-lane vehicle that had passed
+/// once more, at `T_i = T_j`. Within `clearance` of `x_c` that meeting still counts: a vehicle
+/// reaching `x_c` just behind another one, bodies overlapping, is still penalised. Still
+/// symmetric.
+pub fn conflict_time_gap_before<T: Num>(
+    [x_i, v_i, x_j, v_j]: [&T; 4],
+    x_c: f64,
+    clearance: f64,
+    eps: f64,
+) -> T {
+    let passed = x_i.max(x_j).gt_c(x_c + clearance);
     T::select(
         &passed,
         &x_i.full(0.0),
@@ -70,12 +78,12 @@ pub fn conflict_time_gap_before<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c:
     )
 }
 
-/// The conflict term a reward uses: [`conflict_time_gap_before`] with
-/// `reward.conflict_ends_at_x_c`, else the paper's [`conflict_time_gap`].
-pub fn conflict_term<T: Num>(ends_at_x_c: bool) -> fn(&T, &T, &T, &T, f64, f64) -> T {
-    if ends_at_x_c {
-        conflict_time_gap_before
-    } else {
-        conflict_time_gap
+/// The conflict term a reward uses: [`conflict_time_gap_before`] with the clearance `ends`
+/// (`reward.conflict_ends_at_x_c`, [`crate::config::RewardConfig::conflict_end`]), else the
+/// paper's [`conflict_time_gap`].
+pub fn conflict_term<T: Num>(ends: Option<f64>, x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
+    match ends {
+        Some(clearance) => conflict_time_gap_before([x_i, v_i, x_j, v_j], x_c, clearance, eps),
+        None => conflict_time_gap(x_i, v_i, x_j, v_j, x_c, eps),
     }
 }

@@ -147,6 +147,7 @@ pub fn reward_difference(sidecar: &Sidecar, run: &Config) -> Option<String> {
                 "reward.conflict_ends_at_x_c",
                 f64::from(u8::from(r.conflict_ends_at_x_c)),
             ),
+            ("reward.conflict_clearance", r.conflict_clearance),
         ]
     };
     first_difference(&terms(&sidecar.config), &terms(run))
