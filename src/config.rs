@@ -203,6 +203,24 @@ pub struct RewardConfig {
     /// vehicle reaching `x_c` just behind another, bodies overlapping, is still penalised.
     #[serde(default)]
     pub conflict_clearance: f64,
+    /// The conflict term's times to `x_c` are signed, `T = (x_c - x) / (v + eps)`, negative
+    /// once a vehicle has passed (ours; default false: the paper's `|x - x_c|`). `T_i - T_j`
+    /// is then the pair's time headway at `x_c` on both sides of it, so a ramp vehicle that
+    /// follows a passed one is no longer taken to meet it a second time.
+    #[serde(default)]
+    pub conflict_signed_time: bool,
+}
+
+/// How the different-lane conflict term (eq. 28) reads a vehicle's time to the conflict point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ConflictForm {
+    /// The paper's `T = |x - x_c| / (v + eps)` on both sides of `x_c`.
+    Paper,
+    /// The paper's times until either vehicle is this far (m) past `x_c`, then no term
+    /// (`conflict_ends_at_x_c`, `conflict_clearance`).
+    EndsPast(f64),
+    /// Signed times, `T = (x_c - x) / (v + eps)` (`conflict_signed_time`).
+    Signed,
 }
 
 impl RewardConfig {
@@ -211,10 +229,15 @@ impl RewardConfig {
         self.w_speed_ramp.unwrap_or(self.w_speed)
     }
 
-    /// How far past `x_c` (m) a different-lane pair's conflict term ends: `conflict_clearance`
-    /// with `conflict_ends_at_x_c`, else `None` (the paper's: never).
-    pub fn conflict_end(&self) -> Option<f64> {
-        self.conflict_ends_at_x_c.then_some(self.conflict_clearance)
+    /// The conflict term's form these keys select.
+    pub fn conflict_form(&self) -> ConflictForm {
+        if self.conflict_signed_time {
+            ConflictForm::Signed
+        } else if self.conflict_ends_at_x_c {
+            ConflictForm::EndsPast(self.conflict_clearance)
+        } else {
+            ConflictForm::Paper
+        }
     }
 }
 
@@ -500,6 +523,12 @@ impl Config {
         positive("reward.v_c", r.v_c)?;
         positive("reward.epsilon", r.epsilon)?;
         non_negative("reward.conflict_clearance", r.conflict_clearance)?;
+        check(
+            "reward.conflict_signed_time",
+            !(r.conflict_signed_time && r.conflict_ends_at_x_c),
+            "and reward.conflict_ends_at_x_c exclude each other (choose one form of the conflict term)"
+                .into(),
+        )?;
         for (key, w) in [
             ("reward.w_speed", r.w_speed),
             ("reward.w_comfort", r.w_comfort),

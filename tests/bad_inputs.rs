@@ -175,6 +175,15 @@ fn cases() -> Vec<Case> {
             smoke_with("conflict_point", "-5.0"),
             "conflict_point",
         ),
+        demo(
+            "two forms of the conflict term",
+            smoke().replacen(
+                "w_conflict = 5.0",
+                "w_conflict = 5.0\nconflict_ends_at_x_c = true\nconflict_signed_time = true",
+                1,
+            ),
+            "reward.conflict_signed_time",
+        ),
         demo("a string for a number", smoke_with("dt", "\"fast\""), "dt"),
         demo("not TOML", "this is = = not toml\n".into(), "c.toml"),
         demo("empty strata", smoke_with("strata", "[0, 4]"), "strata"),

@@ -6,7 +6,8 @@ use approx::assert_abs_diff_eq;
 use common::{car, scene, smoke};
 use mpgdrive::eval::mpg_check::{CheckSettings, check_mpg};
 use mpgdrive::game::terms::{
-    comfort, conflict_time_gap, conflict_time_gap_before, same_lane_ttc, speed_tracking,
+    comfort, conflict_time_gap, conflict_time_gap_before, conflict_time_gap_signed, same_lane_ttc,
+    speed_tracking,
 };
 use mpgdrive::game::{PairReward, PairTerms, PaperReward, StepRewards};
 use mpgdrive::world::sampler::sample_scene;
@@ -87,6 +88,30 @@ fn the_conflict_term_can_end_at_the_conflict_point() {
     assert_eq!(
         conflict_time_gap_before([&167.0, &10.1, &193.0, &10.1], 180.0, 12.0, 0.1),
         0.0
+    );
+}
+
+#[test]
+fn the_conflict_term_can_use_signed_times() {
+    // Both before x_c: the signed times are the paper's, so eq. (28) as above.
+    let r = conflict_time_gap_signed(&150.0, &10.0, &160.0, &15.0, 180.0, 0.1);
+    assert_abs_diff_eq!(r, -0.182_731_493_509_931_56, epsilon = 1e-12);
+    // The ramp vehicle 10 m before x_c and the target-lane car 10 m past it, both at 10.1 m/s:
+    // T = +10 / 10.2 and -10 / 10.2 s, 1.96 s apart at x_c, where |x - x_c| gave -1 / eps.
+    // -1 / (0.98039 * 1.96078^2 + 0.1) = -0.2584454 (computed independently); symmetric.
+    for (a, b) in [(170.0, 190.0), (190.0, 170.0)] {
+        assert_abs_diff_eq!(
+            conflict_time_gap_signed(&a, &10.1, &b, &10.1, 180.0, 0.1),
+            -0.258_445_392_059_449_83,
+            epsilon = 1e-12
+        );
+    }
+    // 10 m before at 12 m/s, the car 5 m past at 15: T = 10 / 12.1 and -5 / 15.1 s,
+    // -1.2484849 (computed independently).
+    assert_abs_diff_eq!(
+        conflict_time_gap_signed(&170.0, &12.0, &185.0, &15.0, 180.0, 0.1),
+        -1.248_484_902_066_080_2,
+        epsilon = 1e-12
     );
 }
 
@@ -288,12 +313,16 @@ fn a_ramp_speed_weight_weighs_a_ramp_vehicles_speed_term_alone() {
 #[test]
 fn check_mpg_passes_merge_traffic_with_the_reward_options() {
     // The ramp weight follows each vehicle's own lane: still a self term (Theorem 1); the
-    // conflict term that ends at x_c is still symmetric (Theorem 2).
+    // conflict term that ends past x_c, or reads signed times, is still symmetric (Theorem 2).
     let mut config = common::traffic();
     config.sim.horizon = 10.0;
     config.reward.w_speed_ramp = Some(3.0);
     config.reward.conflict_ends_at_x_c = true;
     config.reward.conflict_clearance = 10.0;
+    let report = check_mpg(&config, &settings(true), &PaperReward::new(&config), &mut || {});
+    assert!(report.max_relative_gap < 1e-9, "gap {}", report.max_relative_gap);
+    config.reward.conflict_ends_at_x_c = false;
+    config.reward.conflict_signed_time = true;
     let report = check_mpg(&config, &settings(true), &PaperReward::new(&config), &mut || {});
     assert!(report.max_relative_gap < 1e-9, "gap {}", report.max_relative_gap);
 }

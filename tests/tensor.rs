@@ -110,7 +110,7 @@ fn engines_agree_in_the_theorem_setting() {
 #[test]
 fn engines_agree_with_the_reward_options() {
     // The ego's speed term weighted by its lane (3 on the ramp, 1 in the target lane), and
-    // the conflict term ending at x_c, and 10 m past it.
+    // the conflict term ending at x_c, 10 m past it, and on signed times.
     let mut config = ungated();
     config.reward.w_speed_ramp = Some(3.0);
     assert!(compare(&config, Driver::Idm, Driver::Idm, true, true) > 0);
@@ -118,9 +118,15 @@ fn engines_agree_with_the_reward_options() {
     assert!(compare(&config, Driver::Idm, Driver::Idm, true, true) > 0);
     config.reward.conflict_clearance = 10.0;
     assert!(compare(&config, Driver::Idm, Driver::Idm, true, true) > 0);
+    config.reward.conflict_ends_at_x_c = false;
+    config.reward.conflict_signed_time = true;
+    assert!(compare(&config, Driver::Idm, Driver::Idm, true, true) > 0);
     let mut traffic = common::traffic();
     traffic.reward.w_speed_ramp = Some(2.0);
     traffic.reward.conflict_ends_at_x_c = true;
+    traffic_engines_agree(&traffic);
+    traffic.reward.conflict_ends_at_x_c = false;
+    traffic.reward.conflict_signed_time = true;
     traffic_engines_agree(&traffic);
 }
 

@@ -340,13 +340,13 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     let own = speed.add(&terms::comfort(u).mul_c(r.w_comfort));
     let same_lane = pairs.of_ends(&batch.on_ramp, |a, b| f64::from(u8::from(a == b)));
     let np = pairs.both.len();
-    let conflict_end = r.conflict_end();
+    let conflict_form = r.conflict_form();
     // Each pair's term in one pass over the pairs (the generic terms on dual numbers).
     let pair = Var::pairwise(&batch.x, &batch.v, &pairs.both, |row, p, [xi, vi, xj, vj]| {
         if same_lane[row * np + p] > 0.5 {
             terms::same_lane_ttc(&xi, &vi, &xj, &vj, r.v_c, r.epsilon).mul_c(r.w_ttc)
         } else {
-            terms::conflict_term(conflict_end, &xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict)
+            terms::conflict_term(conflict_form, &xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict)
         }
     });
     let reward = own.add(&pair.pair_sums(&pairs.both, pairs.n));

@@ -13,7 +13,7 @@
 //! Each term is also logged unweighted per agent ([`TermValues`]); pair terms are logged as the
 //! sum over the agent's partners.
 
-use crate::config::Config;
+use crate::config::{Config, ConflictForm};
 use crate::game::terms;
 use crate::world::state::{Scene, Vehicle};
 
@@ -77,8 +77,8 @@ pub struct PaperReward {
     pub weights: [f64; 4],
     /// Speed-tracking weight of a vehicle on the ramp.
     pub w_speed_ramp: f64,
-    /// How far past `x_c` the conflict term ends ([`crate::config::RewardConfig::conflict_end`]).
-    pub conflict_end: Option<f64>,
+    /// The conflict term's form ([`crate::config::RewardConfig::conflict_form`]).
+    pub conflict_form: ConflictForm,
 }
 
 impl PaperReward {
@@ -92,7 +92,7 @@ impl PaperReward {
             conflict_point: config.scenario.conflict_point,
             weights: [r.w_speed, r.w_comfort, r.w_ttc, r.w_conflict],
             w_speed_ramp: r.speed_weight_on_ramp(),
-            conflict_end: r.conflict_end(),
+            conflict_form: r.conflict_form(),
         }
     }
 
@@ -140,7 +140,7 @@ impl PairReward for PaperReward {
             }
         } else {
             let conflict = terms::conflict_term(
-                self.conflict_end,
+                self.conflict_form,
                 &a.x,
                 &a.v,
                 &b.x,

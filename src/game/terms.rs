@@ -3,6 +3,7 @@
 //! Self terms depend on one vehicle; pair terms are symmetric in the two vehicles
 //! (`r_ij = r_ji`), which Theorem 2 needs.
 
+use crate::config::ConflictForm;
 use crate::num::Num;
 
 /// Speed tracking, `-(v - v_d)^2`.
@@ -78,12 +79,40 @@ pub fn conflict_time_gap_before<T: Num>(
     )
 }
 
-/// The conflict term a reward uses: [`conflict_time_gap_before`] with the clearance `ends`
-/// (`reward.conflict_ends_at_x_c`, [`crate::config::RewardConfig::conflict_end`]), else the
-/// paper's [`conflict_time_gap`].
-pub fn conflict_term<T: Num>(ends: Option<f64>, x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
-    match ends {
-        Some(clearance) => conflict_time_gap_before([x_i, v_i, x_j, v_j], x_c, clearance, eps),
-        None => conflict_time_gap(x_i, v_i, x_j, v_j, x_c, eps),
+/// Eq. (28) on signed times to the conflict point, `T = (x_c - x) / (v + eps)`, negative once
+/// a vehicle has passed it (`reward.conflict_signed_time`, ours):
+/// `-1 / (sqrt(|T_i T_j|) (T_i - T_j)^2 + eps)`. `T_i - T_j` is the pair's time headway at
+/// `x_c` whichever side of it each vehicle is, so a ramp vehicle following a passed one by
+/// 1.5 s is penalised for 1.5 s, where `|x - x_c|` had them meet at `T_i = T_j`. Symmetric,
+/// and equal to [`conflict_time_gap`] while both vehicles are before `x_c`.
+pub fn conflict_time_gap_signed<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
+    let t_i = x_i.add_c(-x_c).neg().div(&v_i.add_c(eps));
+    let t_j = x_j.add_c(-x_c).neg().div(&v_j.add_c(eps));
+    t_i.mul(&t_j)
+        .abs()
+        .add_c(1e-12)
+        .sqrt()
+        .mul(&t_i.sub(&t_j).square())
+        .add_c(eps)
+        .recip()
+        .neg()
+}
+
+/// The conflict term of the configured form ([`crate::config::RewardConfig::conflict_form`]).
+pub fn conflict_term<T: Num>(
+    form: ConflictForm,
+    x_i: &T,
+    v_i: &T,
+    x_j: &T,
+    v_j: &T,
+    x_c: f64,
+    eps: f64,
+) -> T {
+    match form {
+        ConflictForm::Paper => conflict_time_gap(x_i, v_i, x_j, v_j, x_c, eps),
+        ConflictForm::EndsPast(clearance) => {
+            conflict_time_gap_before([x_i, v_i, x_j, v_j], x_c, clearance, eps)
+        }
+        ConflictForm::Signed => conflict_time_gap_signed(x_i, v_i, x_j, v_j, x_c, eps),
     }
 }

@@ -148,6 +148,10 @@ pub fn reward_difference(sidecar: &Sidecar, run: &Config) -> Option<String> {
                 f64::from(u8::from(r.conflict_ends_at_x_c)),
             ),
             ("reward.conflict_clearance", r.conflict_clearance),
+            (
+                "reward.conflict_signed_time",
+                f64::from(u8::from(r.conflict_signed_time)),
+            ),
         ]
     };
     first_difference(&terms(&sidecar.config), &terms(run))
