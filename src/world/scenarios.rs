@@ -34,9 +34,9 @@ impl Preset {
     pub fn description(self) -> &'static str {
         match self {
             Preset::One => {
-                "leaders 1-4 slower than v_d, followers 5-8 faster than the ego; the gap between 4 and 5 should widen"
+                "leaders 1-4 below v_d, followers 5-8 above it, 5 120 m behind the ego: the gap between 4 and 5 should widen"
             }
-            Preset::Two => "a 40 m gap between 4 and 5, but 5 is 6 m/s faster than the ego: wait, then merge",
+            Preset::Two => "a 70 m gap between 4 and 5, but 5 is 6 m/s faster than the ego: wait, then merge",
         }
     }
 
@@ -44,22 +44,22 @@ impl Preset {
     pub fn state(self) -> PresetState {
         match self {
             Preset::One => PresetState {
-                ego_before: 80.0,
-                ego_speed: 12.0,
+                ego_before: 30.0,
+                ego_speed: 10.0,
                 gap_ahead: 10.0,
-                gap_behind: 10.0,
-                leader_speed: 11.0,
-                follower_speed: 13.0,
+                gap_behind: 120.0,
+                leader_speed: 9.0,
+                follower_speed: 18.0,
                 headway: 14.0,
             },
             Preset::Two => PresetState {
-                ego_before: 80.0,
+                ego_before: 30.0,
                 ego_speed: 10.0,
-                gap_ahead: 20.0,
-                gap_behind: 20.0,
-                leader_speed: 10.0,
+                gap_ahead: 10.0,
+                gap_behind: 60.0,
+                leader_speed: 14.0,
                 follower_speed: 16.0,
-                headway: 14.0,
+                headway: 30.0,
             },
         }
     }
@@ -164,22 +164,22 @@ mod tests {
         let config =
             Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
                 .unwrap();
-        // x_c = 180: the ego 80 m before it at 100; "4" 10 m ahead (110), "1" three headways
-        // of 14 m further (152); "5" 10 m behind (90), "8" three headways further back (48).
+        // x_c = 180: the ego 30 m before it at 150; "4" 10 m ahead (160), "1" three headways
+        // of 14 m further (202); "5" 120 m behind (30), "8" three headways further back (-12).
         let scene = Preset::One.scene(&config);
         let xv: Vec<(f64, f64)> = scene.vehicles.iter().map(|v| (v.x, v.v)).collect();
         assert_eq!(
             xv,
             vec![
-                (100.0, 12.0),
-                (152.0, 11.0),
-                (138.0, 11.0),
-                (124.0, 11.0),
-                (110.0, 11.0),
-                (90.0, 13.0),
-                (76.0, 13.0),
-                (62.0, 13.0),
-                (48.0, 13.0)
+                (150.0, 10.0),
+                (202.0, 9.0),
+                (188.0, 9.0),
+                (174.0, 9.0),
+                (160.0, 9.0),
+                (30.0, 18.0),
+                (16.0, 18.0),
+                (2.0, 18.0),
+                (-12.0, 18.0)
             ]
         );
         assert!(scene.vehicles[0].on_ramp && scene.vehicles[1..].iter().all(|v| !v.on_ramp));
