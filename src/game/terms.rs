@@ -47,12 +47,18 @@ pub fn time_to_conflict<T: Num>(x: &T, v: &T, x_c: f64, eps: f64) -> T {
 pub fn conflict_time_gap<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
     let t_i = time_to_conflict(x_i, v_i, x_c, eps);
     let t_j = time_to_conflict(x_j, v_j, x_c, eps);
+    time_gap_penalty(&t_i, &t_j, t_i.mul(&t_j), eps)
+}
+
+/// Eq. (28) from the two times and `|T_i T_j|`:
+/// `-1 / (sqrt(|T_i T_j| + 1e-12) (T_i - T_j)^2 + eps)`.
+fn time_gap_penalty<T: Num>(t_i: &T, t_j: &T, product: T, eps: f64) -> T {
     // 1e-12 under the root keeps its derivative finite where a time is 0 (a vehicle at x_c):
     // sqrt'(0) is infinite. It moves the value by less than 1e-12 relative.
-    t_i.mul(&t_j)
+    product
         .add_c(1e-12)
         .sqrt()
-        .mul(&t_i.sub(&t_j).square())
+        .mul(&t_i.sub(t_j).square())
         .add_c(eps)
         .recip()
         .neg()
@@ -88,14 +94,7 @@ pub fn conflict_time_gap_before<T: Num>(
 pub fn conflict_time_gap_signed<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
     let t_i = x_i.add_c(-x_c).neg().div(&v_i.add_c(eps));
     let t_j = x_j.add_c(-x_c).neg().div(&v_j.add_c(eps));
-    t_i.mul(&t_j)
-        .abs()
-        .add_c(1e-12)
-        .sqrt()
-        .mul(&t_i.sub(&t_j).square())
-        .add_c(eps)
-        .recip()
-        .neg()
+    time_gap_penalty(&t_i, &t_j, t_i.mul(&t_j).abs(), eps)
 }
 
 /// The conflict term of the configured form ([`crate::config::RewardConfig::conflict_form`]).
