@@ -20,7 +20,7 @@ fn bench(c: &mut Criterion) {
         .map(|k| (k as f32 * 0.37) % 40.0)
         .collect();
     let mut group = c.benchmark_group("ensemble_5x25");
-    let ensemble = PolicyEnsemble::new(nets().collect(), Combine::Median).unwrap();
+    let mut ensemble = PolicyEnsemble::new(nets().collect(), Combine::Median).unwrap();
     let mut out = vec![0.0f32; ROWS];
     group.bench_function("plain_rust", |b| {
         b.iter(|| ensemble.actions(&obs, ROWS, &mut out))
@@ -37,6 +37,16 @@ fn bench(c: &mut Criterion) {
         })
     });
     group.finish();
+    // An evaluation's batch: one network on 250 scenes x 9 players.
+    const EVAL_ROWS: usize = 2250;
+    let obs: Vec<f32> = (0..EVAL_ROWS * spec.obs_dim)
+        .map(|k| (k as f32 * 0.37) % 40.0)
+        .collect();
+    let mut one = PolicyEnsemble::from(PolicyNet::seeded(spec.clone(), 0));
+    let mut out = vec![0.0f32; EVAL_ROWS];
+    c.bench_function("network_2250_rows", |b| {
+        b.iter(|| one.actions(&obs, EVAL_ROWS, &mut out))
+    });
 }
 
 criterion_group!(benches, bench);

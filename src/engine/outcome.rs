@@ -33,6 +33,8 @@ pub struct EgoStats {
     /// Steps counted in the sums.
     pub steps: usize,
     last_accel: f64,
+    /// `min_distance` squared, compared first: the square root is only taken for a new minimum.
+    min_distance_sq: f64,
 }
 
 impl Default for EgoStats {
@@ -45,6 +47,7 @@ impl Default for EgoStats {
             sum_abs_jerk: 0.0,
             steps: 0,
             last_accel: 0.0,
+            min_distance_sq: f64::INFINITY,
         }
     }
 }
@@ -60,8 +63,12 @@ impl EgoStats {
         let ego = &scene.vehicles[i];
         let others = scene.vehicles.iter().enumerate().filter(|&(j, _)| j != i);
         for (_, other) in others {
-            let d = (other.x - ego.x).hypot(other.y - ego.y);
-            self.min_distance = self.min_distance.min(d);
+            let (dx, dy) = (other.x - ego.x, other.y - ego.y);
+            let d_sq = dx * dx + dy * dy;
+            if d_sq < self.min_distance_sq {
+                self.min_distance_sq = d_sq;
+                self.min_distance = self.min_distance.min(dx.hypot(dy));
+            }
             if other.on_ramp == ego.on_ramp {
                 self.min_lane_distance = self.min_lane_distance.min((other.x - ego.x).abs());
             }

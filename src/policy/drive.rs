@@ -20,8 +20,8 @@ pub enum Others<'a> {
     Driver(Driver),
 }
 
-fn copies(net: &PolicyNet, n: usize) -> Result<Vec<PolicyNet>, tch::TchError> {
-    (0..n).map(|_| net.try_clone()).collect()
+fn copies(net: &PolicyNet, n: usize) -> Result<Vec<crate::policy::ensemble::PolicyEnsemble>, tch::TchError> {
+    (0..n).map(|_| net.try_clone().map(Into::into)).collect()
 }
 
 /// Rolls `scenes` out with the network driving the ego and `others` the other players,
@@ -35,7 +35,7 @@ pub fn policy_rollout(
     recording: Recording,
 ) -> Result<Vec<EpisodeOutcome>, tch::TchError> {
     let threads = threads.clamp(1, scenes.len().max(1));
-    let second: Vec<Option<PolicyNet>> = match others {
+    let second: Vec<Option<crate::policy::ensemble::PolicyEnsemble>> = match others {
         Others::Network(o) => copies(o, threads)?.into_iter().map(Some).collect(),
         _ => (0..threads).map(|_| None).collect(),
     };

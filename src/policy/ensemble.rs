@@ -82,8 +82,21 @@ pub struct PolicyEnsemble {
     spec: NetSpec,
     members: Vec<Dense>,
     combine: Combine,
-    /// Whether the processor runs AVX2 (checked once, at construction).
-    avx2: bool,
+    /// The vector instructions of this processor (checked once, at construction).
+    isa: Isa,
+    /// Buffers kept from one call to the next: an evaluation acts on thousands of rows every
+    /// step, and buffers that large, allocated afresh, cost a page fault per page.
+    scratch: Scratch,
+}
+
+/// The working buffers of [`PolicyEnsemble::actions`].
+#[derive(Debug, Default)]
+struct Scratch {
+    input: Vec<f32>,
+    hidden: [Vec<f32>; 2],
+    /// `[members][rows]`.
+    each: Vec<f32>,
+    column: Vec<f32>,
 }
 
 /// One member's weights: per layer, `[in][out]` row-major (each input's weights to every output
@@ -113,104 +126,122 @@ fn floats(t: &Tensor) -> Vec<f32> {
     Vec::<f32>::try_from(t.to_kind(tch::Kind::Float)).expect("a CPU float tensor")
 }
 
-/// `out = x w + b` for `rows` rows of `x` (`[rows][inputs]`) into `out` (`[rows][outputs]`):
-/// each output summed over the inputs in their order, then the bias added.
-fn dense(x: &[f32], rows: usize, w: &[f32], b: &[f32], out: &mut [f32], avx2: bool) {
+/// The vector instructions [`dense`] uses, found once per ensemble.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Isa {
+    /// Whatever the compiler targets by default.
+    Portable,
+    /// 256-bit registers.
     #[cfg(target_arch = "x86_64")]
-    if avx2 && b.len() % LANES == 0 {
-        // SAFETY: `avx2` is true only where the processor was found to support AVX2
-        // ([`has_avx2`]), the one requirement of `dense_avx2`, which checks the slices' sizes
-        // before any load or store.
-        unsafe { dense_avx2(x, rows, w, b, out) };
-        return;
-    }
-    let _ = avx2;
-    dense_portable(&x[..rows * (w.len() / b.len())], w, b, out);
+    Avx2,
+    /// 512-bit registers.
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
 }
 
-/// [`dense`] one row after the other (the rows are `x`'s chunks).
-fn dense_portable(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
-    let (inputs, outputs) = (w.len() / b.len(), b.len());
-    for (xr, row) in x.chunks_exact(inputs).zip(out.chunks_exact_mut(outputs)) {
-        if let [o] = row {
-            // One output (the output layer): the sum in a register, in the same order.
-            *o = xr.iter().zip(w).fold(0.0, |s, (&xi, &wi)| s + xi * wi) + b[0];
-            continue;
-        }
-        row.fill(0.0);
-        for (&xi, wrow) in xr.iter().zip(w.chunks_exact(outputs)) {
-            for (o, &wij) in row.iter_mut().zip(wrow) {
-                *o += xi * wij;
+impl Isa {
+    /// The widest this processor runs.
+    fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Isa::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Isa::Avx2;
             }
         }
-        for (o, &bj) in row.iter_mut().zip(b) {
-            *o += bj;
-        }
+        Isa::Portable
     }
 }
 
-/// Outputs computed together by [`dense_avx2`]: two AVX2 registers of `f32`.
-#[cfg(target_arch = "x86_64")]
-const LANES: usize = 16;
-/// Rows computed together by [`dense_avx2`], so that each loaded weight serves all of them.
-#[cfg(target_arch = "x86_64")]
-const ROW_BLOCK: usize = 4;
+/// `out = x w + b` for `rows` rows of `x` (`[rows][inputs]`) into `out` (`[rows][outputs]`):
+/// each output summed over the inputs in their order, then the bias added. Every path computes
+/// each output by the same scalar operations in the same order, so all give the same bits.
+fn dense(x: &[f32], rows: usize, w: &[f32], b: &[f32], out: &mut [f32], isa: Isa) {
+    let (inputs, outputs) = (w.len() / b.len(), b.len());
+    assert!(w.len() == inputs * outputs && x.len() >= rows * inputs && out.len() >= rows * outputs);
+    let (x, out) = (&x[..rows * inputs], &mut out[..rows * outputs]);
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Isa::detect` found that this processor runs AVX-512F, the one requirement of
+        // `dense_avx512` (safe code in every other respect).
+        Isa::Avx512 if outputs % 64 == 0 => unsafe { dense_avx512(x, w, b, out) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Isa::detect` found that this processor runs AVX2, the one requirement.
+        Isa::Avx2 if outputs % 64 == 0 => unsafe { dense_avx2(x, w, b, out) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: this processor runs AVX2 (every AVX-512F processor does), the one requirement.
+        Isa::Avx2 | Isa::Avx512 if outputs % 16 == 0 => unsafe { dense_avx2_narrow(x, w, b, out) },
+        _ if outputs == 1 => dense_blocked::<8, 1>(x, w, b, out),
+        _ => dense_rows(x, w, b, out),
+    }
+}
 
-/// [`dense`] in blocks of [`ROW_BLOCK`] rows by [`LANES`] outputs whose sums stay in registers
-/// (`outputs` a multiple of [`LANES`]); the rows after the last full block go through
-/// [`dense_portable`]. Separate multiplies and adds in [`dense_portable`]'s order, so its bits.
+// The block sizes below were the fastest of those tried on a 64-wide layer (benches/ensemble.rs,
+// `network_2250_rows`, on a 2-core Xeon with AVX-512).
+
+/// [`dense`] with AVX-512F code generation: 2 rows by 64 outputs at a time.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn dense_avx512(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
+    dense_blocked::<2, 64>(x, w, b, out);
+}
+
+/// [`dense`] with AVX2 code generation: one row by 64 outputs at a time.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn dense_avx2(x: &[f32], rows: usize, w: &[f32], b: &[f32], out: &mut [f32]) {
-    use std::arch::x86_64::{_mm256_add_ps, _mm256_loadu_ps, _mm256_mul_ps, _mm256_set1_ps};
-    use std::arch::x86_64::{_mm256_setzero_ps, _mm256_storeu_ps};
-    let outputs = b.len();
-    let inputs = w.len() / outputs;
-    assert!(outputs % LANES == 0 && w.len() == inputs * outputs);
-    assert!(x.len() >= rows * inputs && out.len() >= rows * outputs);
-    let blocks = rows / ROW_BLOCK;
-    for block in 0..blocks {
-        let r0 = block * ROW_BLOCK;
-        for j0 in (0..outputs).step_by(LANES) {
-            // SAFETY: the loads read `w[k * outputs + j0..][..16]` (k < inputs, j0 + 16 <=
-            // outputs) and `b[j0..][..16]`, the stores write `out[(r0 + r) * outputs + j0..]
-            // [..16]` (r0 + r < rows): all within the lengths asserted above.
-            unsafe {
-                let mut acc = [[_mm256_setzero_ps(); 2]; ROW_BLOCK];
-                for k in 0..inputs {
-                    let wk = w.as_ptr().add(k * outputs + j0);
-                    let (w0, w1) = (_mm256_loadu_ps(wk), _mm256_loadu_ps(wk.add(8)));
-                    for (r, sums) in acc.iter_mut().enumerate() {
-                        let xv = _mm256_set1_ps(x[(r0 + r) * inputs + k]);
-                        sums[0] = _mm256_add_ps(sums[0], _mm256_mul_ps(xv, w0));
-                        sums[1] = _mm256_add_ps(sums[1], _mm256_mul_ps(xv, w1));
+fn dense_avx2(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
+    dense_blocked::<1, 64>(x, w, b, out);
+}
+
+/// [`dense`] with AVX2 code generation for layers of a multiple of 16 outputs: 4 rows by 16.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn dense_avx2_narrow(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
+    dense_blocked::<4, 16>(x, w, b, out);
+}
+
+/// [`dense`] in blocks of `R` rows by `W` outputs whose `R x W` sums stay in registers (so each
+/// loaded weight serves `R` rows, and `R` independent sums hide the adds' latency), with
+/// `outputs` a multiple of `W`; the rows after the last full block go one at a time. Plain
+/// multiplies and adds (Rust does not fuse them), each sum over the inputs in their order: the
+/// compiler vectorises across the `W` outputs, which does not change any output's bits.
+#[inline(always)]
+fn dense_blocked<const R: usize, const W: usize>(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
+    let (inputs, outputs) = (w.len() / b.len(), b.len());
+    let full = x.len() / inputs / R * R;
+    for (xs, os) in x[..full * inputs]
+        .chunks_exact(R * inputs)
+        .zip(out.chunks_exact_mut(R * outputs))
+    {
+        for j0 in (0..outputs).step_by(W) {
+            let mut acc = [[0.0f32; W]; R];
+            for k in 0..inputs {
+                let wk: &[f32; W] = w[k * outputs + j0..][..W].try_into().expect("W weights");
+                for (r, sums) in acc.iter_mut().enumerate() {
+                    let xv = xs[r * inputs + k];
+                    for (s, &wl) in sums.iter_mut().zip(wk) {
+                        *s += xv * wl;
                     }
                 }
-                let bias = b.as_ptr().add(j0);
-                let (b0, b1) = (_mm256_loadu_ps(bias), _mm256_loadu_ps(bias.add(8)));
-                for (r, sums) in acc.iter().enumerate() {
-                    let o = out.as_mut_ptr().add((r0 + r) * outputs + j0);
-                    _mm256_storeu_ps(o, _mm256_add_ps(sums[0], b0));
-                    _mm256_storeu_ps(o.add(8), _mm256_add_ps(sums[1], b1));
+            }
+            for (r, sums) in acc.iter().enumerate() {
+                let o = &mut os[r * outputs + j0..][..W];
+                for ((o, &s), &bl) in o.iter_mut().zip(sums).zip(&b[j0..j0 + W]) {
+                    *o = s + bl;
                 }
             }
         }
     }
-    let done = blocks * ROW_BLOCK;
-    dense_portable(
-        &x[done * inputs..rows * inputs],
-        w,
-        b,
-        &mut out[done * outputs..rows * outputs],
-    );
+    if full * inputs < x.len() {
+        dense_rows(&x[full * inputs..], w, b, &mut out[full * outputs..]);
+    }
 }
 
-/// Whether this processor runs AVX2 instructions.
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    return std::arch::is_x86_feature_detected!("avx2");
-    #[cfg(not(target_arch = "x86_64"))]
-    false
+/// [`dense`] one row and one output at a time.
+fn dense_rows(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
+    dense_blocked::<1, 1>(x, w, b, out);
 }
 
 /// Without a branch (a select the compiler vectorises): the signs of hidden units are
@@ -237,7 +268,8 @@ impl PolicyEnsemble {
             spec: first.spec.clone(),
             members: nets.iter().map(Dense::of).collect(),
             combine,
-            avx2: has_avx2(),
+            isa: Isa::detect(),
+            scratch: Scratch::default(),
         })
     }
 
@@ -258,35 +290,42 @@ impl PolicyEnsemble {
 
     /// The combined action of each row of `obs` (`rows x obs_dim`, row-major, raw SI values)
     /// into `out[..rows]`.
-    pub fn actions(&self, obs: &[f32], rows: usize, out: &mut [f32]) {
+    pub fn actions(&mut self, obs: &[f32], rows: usize, out: &mut [f32]) {
         assert_eq!(
             obs.len(),
             rows * self.spec.obs_dim,
             "observations of another width"
         );
         let (h, n) = (self.spec.hidden, self.members.len());
-        let mut x = obs.to_vec();
+        let Scratch {
+            input: x,
+            hidden: [h1, h2],
+            each,
+            column,
+        } = &mut self.scratch;
+        x.clear();
+        x.extend_from_slice(obs);
         for row in x.chunks_exact_mut(self.spec.obs_dim) {
             for (xi, &s) in row.iter_mut().zip(&self.spec.obs_scale) {
                 *xi *= s;
             }
         }
-        let (mut h1, mut h2) = (vec![0.0f32; rows * h], vec![0.0f32; rows * h]);
-        // [members][rows]
-        let mut each = vec![0.0f32; n * rows];
+        h1.resize(rows * h, 0.0);
+        h2.resize(rows * h, 0.0);
+        each.resize(n * rows, 0.0);
         let g = self.spec.action_scale as f32;
         for (member, y) in self.members.iter().zip(each.chunks_exact_mut(rows.max(1))) {
             let [(w1, b1), (w2, b2), (w3, b3)] = &member.layers;
-            dense(&x, rows, w1, b1, &mut h1, self.avx2);
-            leaky_relu(&mut h1);
-            dense(&h1, rows, w2, b2, &mut h2, self.avx2);
-            leaky_relu(&mut h2);
-            dense(&h2, rows, w3, b3, y, self.avx2);
+            dense(x, rows, w1, b1, h1, self.isa);
+            leaky_relu(h1);
+            dense(h1, rows, w2, b2, h2, self.isa);
+            leaky_relu(h2);
+            dense(h2, rows, w3, b3, y, self.isa);
             for a in y.iter_mut() {
                 *a = a.tanh() * g;
             }
         }
-        let mut column = vec![0.0f32; n];
+        column.resize(n, 0.0);
         for (r, action) in out[..rows].iter_mut().enumerate() {
             for (m, c) in column.iter_mut().enumerate() {
                 *c = each[m * rows + r];
@@ -325,7 +364,7 @@ mod tests {
     }
 
     /// The ensemble's actions for `obs` `[rows, obs_dim]`.
-    fn act(ensemble: &PolicyEnsemble, obs: &Tensor) -> Vec<f32> {
+    fn act(ensemble: &mut PolicyEnsemble, obs: &Tensor) -> Vec<f32> {
         let rows = obs.size()[0] as usize;
         let flat: Vec<f32> = Vec::try_from(obs.reshape([-1])).unwrap();
         let mut out = vec![f32::NAN; rows];
@@ -347,9 +386,9 @@ mod tests {
             .iter()
             .map(|n| Vec::try_from(tch::no_grad(|| n.forward(&obs))).unwrap())
             .collect();
-        let ensemble = PolicyEnsemble::new(nets, Combine::Mean).unwrap();
+        let mut ensemble = PolicyEnsemble::new(nets, Combine::Mean).unwrap();
         assert_eq!(ensemble.members(), 3);
-        let out = act(&ensemble, &obs);
+        let out = act(&mut ensemble, &obs);
         for (r, &a) in out.iter().enumerate() {
             let mean = (each[0][r] + each[1][r] + each[2][r]) / 3.0;
             assert!((a - mean).abs() < 1e-5, "row {r}: {a} against {mean}");
@@ -367,7 +406,7 @@ mod tests {
                 .iter()
                 .map(|n| Vec::try_from(tch::no_grad(|| n.forward(&obs))).unwrap())
                 .collect();
-            let median = act(&PolicyEnsemble::new(nets, Combine::Median).unwrap(), &obs);
+            let median = act(&mut PolicyEnsemble::new(nets, Combine::Median).unwrap(), &obs);
             for (r, &a) in median.iter().enumerate() {
                 let mut column: Vec<f32> = each.iter().map(|e| e[r]).collect();
                 column.sort_by(f32::total_cmp);
@@ -396,31 +435,56 @@ mod tests {
         let obs = observations(4, one.spec.obs_dim);
         let alone: Vec<f32> = Vec::try_from(tch::no_grad(|| one.forward(&obs))).unwrap();
         for combine in [Combine::Mean, Combine::Median] {
-            let twice = PolicyEnsemble::new(vec![net(5, 8), net(5, 8)], combine).unwrap();
-            let stacked = act(&twice, &obs);
+            let mut twice = PolicyEnsemble::new(vec![net(5, 8), net(5, 8)], combine).unwrap();
+            let stacked = act(&mut twice, &obs);
             assert_eq!(alone.len(), 4);
             for (a, b) in alone.iter().zip(&stacked) {
                 assert!((a - b).abs() < 1e-5, "{combine:?}: {a} against {b}");
             }
         }
-        let own = act(&PolicyEnsemble::from(one), &obs);
+        let own = act(&mut PolicyEnsemble::from(one), &obs);
         for (a, b) in alone.iter().zip(&own) {
             assert!((a - b).abs() < 1e-5, "one member: {a} against {b}");
         }
     }
 
     #[test]
-    fn the_avx2_and_the_portable_code_give_the_same_bits() {
-        let nets: Vec<PolicyNet> = (0..5).map(|k| net(20 + k, 64)).collect();
-        let obs = observations(25, nets[0].spec.obs_dim);
-        let mut ensemble = PolicyEnsemble::new(nets, Combine::Median).unwrap();
-        ensemble.avx2 = false;
-        let portable = act(&ensemble, &obs);
-        ensemble.avx2 = has_avx2();
-        let fast = act(&ensemble, &obs);
-        let bits = |v: &[f32]| v.iter().map(|a| a.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&portable), bits(&fast));
-        assert!(portable.iter().all(|a| a.is_finite() && a.abs() <= 9.81));
+    fn every_instruction_set_gives_the_same_bits() {
+        // 64 hidden units take the wide blocks, 16 the narrow ones.
+        for hidden in [64, 16] {
+            let nets: Vec<PolicyNet> = (0..5).map(|k| net(20 + k, hidden)).collect();
+            let obs = observations(25, nets[0].spec.obs_dim);
+            let mut ensemble = PolicyEnsemble::new(nets, Combine::Median).unwrap();
+            let detected = ensemble.isa;
+            ensemble.isa = Isa::Portable;
+            let portable = act(&mut ensemble, &obs);
+            assert!(portable.iter().all(|a| a.is_finite() && a.abs() <= 9.81));
+            #[cfg(target_arch = "x86_64")]
+            for isa in [Isa::Avx2, Isa::Avx512] {
+                // Only what this processor runs (AVX-512 processors run AVX2 too).
+                if isa == Isa::Avx2 && detected != Isa::Portable || isa == detected {
+                    ensemble.isa = isa;
+                    let vector = act(&mut ensemble, &obs);
+                    assert_eq!(bits(&portable), bits(&vector), "{isa:?}, {hidden} hidden");
+                }
+            }
+        }
+    }
+
+    fn bits(v: &[f32]) -> Vec<u32> {
+        v.iter().map(|a| a.to_bits()).collect()
+    }
+
+    #[test]
+    fn a_row_gets_the_same_bits_in_any_batch() {
+        // 25 rows at once (six blocks of four and one row alone), then rows 3..10 (one block
+        // and three alone) after the larger call: each row's action does not depend on the
+        // rows beside it or on what the buffers held before.
+        let mut ensemble = PolicyEnsemble::from(net(30, 64));
+        let obs = observations(25, ensemble.spec.obs_dim);
+        let all = act(&mut ensemble, &obs);
+        let part = act(&mut ensemble, &obs.narrow(0, 3, 7));
+        assert_eq!(bits(&all[3..10]), bits(&part));
     }
 
     #[test]

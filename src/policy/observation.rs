@@ -28,6 +28,7 @@ use crate::world::neighbors::Neighbors;
 use crate::world::safety::Neighbor;
 use crate::world::state::Scene;
 use crate::world::step::neighbor_of;
+use std::ops::Range;
 
 /// Observation layout version of Table I, stored with policy files; a file of another version
 /// is refused. Version 2 caps a present neighbour's distance at [`MISSING_DISTANCE`] (version 1
@@ -293,6 +294,23 @@ impl<P: BatchPolicy> PolicyActor<P> {
     }
 }
 
+impl<P: BatchPolicy> PolicyActor<P> {
+    /// The observations of players `players` of every scene into `self.obs`, scene by scene.
+    fn observe_players(&mut self, scenes: &[Scene], neighbors: &[Neighbors], players: Range<usize>) {
+        let n = self.config.n_agents();
+        let layout = Layout::of(&self.config);
+        let (dim, frame) = (layout.dim(), Frame::of(&self.config));
+        self.obs.resize(scenes.len() * players.len() * dim, 0.0);
+        let mut rows = self.obs.chunks_exact_mut(dim);
+        for (b, scene) in scenes.iter().enumerate() {
+            for i in players.clone() {
+                let row = rows.next().expect("a row per player");
+                observe(layout, frame, scene, i, &neighbors[b * n + i], row);
+            }
+        }
+    }
+}
+
 impl<P: BatchPolicy> Actor for PolicyActor<P> {
     fn learning(&self, i: usize) -> bool {
         i == 0 || self.all_players || self.others_policy.is_some()
@@ -300,38 +318,31 @@ impl<P: BatchPolicy> Actor for PolicyActor<P> {
 
     fn act(&mut self, _step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]) {
         let n = self.config.n_agents();
-        let layout = Layout::of(&self.config);
-        let dim = layout.dim();
-        let per_scene = if self.all_players { n } else { 1 };
+        // The players `policy` drives in each scene (0..per_scene); a second policy drives the
+        // rest, each network on its own players' rows only.
+        let per_scene = if self.all_players && self.others_policy.is_none() {
+            n
+        } else {
+            1
+        };
         let rows = scenes.len() * per_scene;
-        self.obs.resize(rows * dim, 0.0);
+        self.observe_players(scenes, neighbors, 0..per_scene);
         self.act.resize(rows, 0.0);
-        let frame = Frame::of(&self.config);
-        for (b, scene) in scenes.iter().enumerate() {
-            for i in 0..per_scene {
-                let row = b * per_scene + i;
-                observe(
-                    layout,
-                    frame,
-                    scene,
-                    i,
-                    &neighbors[b * n + i],
-                    &mut self.obs[row * dim..(row + 1) * dim],
-                );
-            }
-        }
         self.policy.act(&self.obs, rows, &mut self.act);
-        if let Some(others) = self.others_policy.as_mut() {
+        if self.others_policy.is_some() {
+            let rows = scenes.len() * (n - 1);
+            self.observe_players(scenes, neighbors, 1..n);
             self.act_others.resize(rows, 0.0);
+            let others = self.others_policy.as_mut().expect("checked above");
             others.act(&self.obs, rows, &mut self.act_others);
         }
         for (b, scene) in scenes.iter().enumerate() {
             for i in 0..n {
                 // A human's raw action is replaced by the rollout (IDM).
-                out[b * n + i] = if i > 0 && self.others_policy.is_some() {
-                    f64::from(self.act_others[b * per_scene + i])
-                } else if i < per_scene {
+                out[b * n + i] = if i < per_scene {
                     f64::from(self.act[b * per_scene + i])
+                } else if self.others_policy.is_some() {
+                    f64::from(self.act_others[b * (n - 1) + i - 1])
                 } else {
                     driver_accel(&self.config, self.others, scene, i, &neighbors[b * n + i])
                 };
