@@ -376,3 +376,25 @@ fn a_scene_of_its_own_desired_speed_tracks_it_with_a_relative_weight() {
     // The logged terms stay unweighted.
     assert_abs_diff_eq!(out.terms[0].speed, -9.0, epsilon = 1e-12);
 }
+
+#[test]
+fn the_egos_reward_alone_is_the_full_computations_bit_for_bit() {
+    // Sampled scenes (the ego on the ramp among eight target-lane players), the paper's
+    // symmetric pair reward and an asymmetric one, arbitrary actions.
+    let config = smoke();
+    let paper = PaperReward::new(&config);
+    let asymmetric = Asymmetric(PaperReward::new(&config));
+    for index in 0..20 {
+        let s = sample_scene(&config, 5, index);
+        let u: Vec<f64> = (0..s.len()).map(|i| 0.7 * i as f64 - 2.5).collect();
+        for pair in [&paper as &dyn PairReward, &asymmetric] {
+            let (mut all, mut ego) = (StepRewards::default(), StepRewards::default());
+            all.compute(&paper, pair, &s.vehicles, &u, &[]);
+            ego.compute_ego(&paper, pair, &s.vehicles, &u);
+            assert_eq!(ego.reward.len(), 1);
+            assert_eq!(ego.reward[0].to_bits(), all.reward[0].to_bits(), "scene {index}");
+            assert_eq!(ego.terms[0], all.terms[0]);
+            assert!(all.potential.is_finite() && ego.potential.is_nan());
+        }
+    }
+}

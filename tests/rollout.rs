@@ -67,6 +67,58 @@ fn returns_are_the_discounted_sums_of_the_recorded_rewards() {
     }
 }
 
+/// Runs `scenes` under constant-speed drivers with `recording` on two threads.
+fn constant_speeds(
+    config: &mpgdrive::Config,
+    scenes: &[Scene],
+    recording: Recording,
+) -> Vec<mpgdrive::engine::EpisodeOutcome> {
+    let opts = RolloutOptions {
+        recording,
+        ..opts(config, 2)
+    };
+    rollout(config, &opts, scenes, || {
+        DriverActor::new(config, Driver::ConstSpeed, Driver::ConstSpeed)
+    })
+}
+
+#[test]
+fn recording_the_ego_alone_gives_its_return_and_statistics_bit_for_bit() {
+    // Sampled scenes, and the scene of `a_collision_ends_the_episode_for_everyone` (the ego
+    // runs into a stopped car) to charge the absorbing tail.
+    let mut crash = smoke();
+    (crash.scenario.n_leaders, crash.scenario.n_followers) = (1, 0);
+    crash.sim.feasibility = false;
+    let crash_scene = scene(vec![car(175.0, 10.0, true), car(183.0, 0.0, false)]);
+    let sampled = smoke();
+    let cases = [
+        (&sampled, sample_scenes(&sampled, 4, 0, 24), false),
+        (&crash, vec![crash_scene], true),
+    ];
+    for (config, scenes, crashes) in &cases {
+        let every = constant_speeds(config, scenes, Recording::Summary);
+        let ego = constant_speeds(config, scenes, Recording::Ego);
+        let n = scenes[0].len();
+        for (a, b) in every.iter().zip(&ego) {
+            assert_eq!(a.returns[0].to_bits(), b.returns[0].to_bits());
+            assert_eq!(a.vehicles[0], b.vehicles[0]);
+            assert_eq!(
+                (a.steps, a.collision, a.ego_merged_at),
+                (b.steps, b.collision, b.ego_merged_at)
+            );
+            assert_eq!(
+                (a.others_overlapped, &a.final_scene),
+                (b.others_overlapped, &b.final_scene)
+            );
+            assert_eq!((a.returns.len(), b.returns.len(), b.vehicles.len()), (n, 1, 1));
+            assert!(a.potential_return.is_finite() && b.potential_return.is_nan());
+            if *crashes {
+                assert_eq!(b.steps, 5, "the crash ends the episode after step 4");
+            }
+        }
+    }
+}
+
 #[test]
 fn ego_merges_at_the_conflict_point_and_takes_the_target_lane() {
     // Alone on the road at 10 m/s from x = 170 m: it passes x_c = 180 after 10 steps (x = 180.0

@@ -31,7 +31,11 @@ use crate::world::step::{advance, applied_action, first_collision_among};
 /// What a rollout keeps besides the per-episode outcome.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Recording {
-    /// Returns, events and ego statistics only.
+    /// The ego's return and statistics and the events only, what the paper's study reports:
+    /// [`EpisodeOutcome::returns`] and [`EpisodeOutcome::vehicles`] hold the ego's alone and
+    /// [`EpisodeOutcome::potential_return`] is NaN, so no other player's reward is computed.
+    Ego,
+    /// Every player's return and statistics, the potential's return and the events.
     Summary,
     /// Also every step's states, actions, terms, rewards and potential.
     Full,
@@ -175,6 +179,8 @@ fn run_chunk(
     let dt = rules.dt;
     let n = initial[0].len();
     let full = opts.recording == Recording::Full;
+    let ego_only = opts.recording == Recording::Ego;
+    let kept = if ego_only { 1 } else { n };
 
     let mut scenes = initial.to_vec();
     let mut outcomes: Vec<EpisodeOutcome> = initial
@@ -184,9 +190,9 @@ fn run_chunk(
             collision: None,
             others_overlapped: false,
             ego_merged_at: None,
-            returns: vec![0.0; n],
-            potential_return: 0.0,
-            vehicles: vec![EgoStats::default(); n],
+            returns: vec![0.0; kept],
+            potential_return: if ego_only { f64::NAN } else { 0.0 },
+            vehicles: vec![EgoStats::default(); kept],
             final_scene: s.clone(),
             trajectory: full.then(|| Trajectory {
                 states: s.vehicles.clone(),
@@ -231,13 +237,12 @@ fn run_chunk(
                     raw[b * n + i],
                 );
             }
-            rewards.compute(
-                &base.in_scene(scene),
-                pair,
-                &scene.vehicles,
-                &applied,
-                &scene.humans,
-            );
+            let base = base.in_scene(scene);
+            if ego_only {
+                rewards.compute_ego(&base, pair, &scene.vehicles, &applied);
+            } else {
+                rewards.compute(&base, pair, &scene.vehicles, &applied, &scene.humans);
+            }
             for (ret, r) in out.returns.iter_mut().zip(&rewards.reward) {
                 *ret += discount * r;
             }

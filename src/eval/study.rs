@@ -290,7 +290,7 @@ pub fn evaluate(
                 Surrounding::Idm => Others::Driver(Driver::Idm),
                 Surrounding::Const => Others::Driver(Driver::ConstSpeed),
             };
-            let outcomes = policy_rollout(config, net, others, &scenes, threads, Recording::Summary)?;
+            let outcomes = policy_rollout(config, net, others, &scenes, threads, Recording::Ego)?;
             let metrics: Vec<_> = outcomes.iter().map(EpisodeMetrics::of).collect();
             episodes.extend(
                 outcomes

@@ -233,6 +233,44 @@ impl StepRewards {
             }
         }
     }
+
+    /// The ego's (player 0's) `r_0` and terms alone, bit for bit as [`StepRewards::compute`]
+    /// gives them (the same pairs added in the same order); `phi` is NaN, as it needs every
+    /// pair.
+    pub fn compute_ego(
+        &mut self,
+        base: &PaperReward,
+        pair: &dyn PairReward,
+        vehicles: &[Vehicle],
+        actions: &[f64],
+    ) {
+        let ego = &vehicles[0];
+        let (speed, comfort) = base.self_terms(ego, actions[0]);
+        let mut reward = base.speed_weight_of(ego) * speed + base.weights[1] * comfort;
+        let mut terms = TermValues {
+            speed,
+            comfort,
+            ttc: 0.0,
+            conflict: 0.0,
+        };
+        let symmetric = pair.is_symmetric();
+        for (i, other) in vehicles.iter().enumerate().skip(1) {
+            // `compute` adds `r_0i` as the `ji` of its pair (i, 0).
+            let terms_0i = if symmetric {
+                pair.pair(i, 0, other, ego)
+            } else {
+                pair.pair(0, i, ego, other)
+            };
+            reward += terms_0i.reward;
+            terms.ttc += terms_0i.ttc;
+            terms.conflict += terms_0i.conflict;
+        }
+        self.reward.clear();
+        self.reward.push(reward);
+        self.terms.clear();
+        self.terms.push(terms);
+        self.potential = f64::NAN;
+    }
 }
 
 /// Weight of a reward held from step `step + 1` to the last step `steps - 1`:
