@@ -156,9 +156,10 @@ impl Isa {
 }
 
 /// `out = x w + b` for `rows` rows of `x` (`[rows][inputs]`) into `out` (`[rows][outputs]`):
-/// each output summed over the inputs in their order, then the bias added. Every path computes
-/// each output by the same scalar operations in the same order, so all give the same bits.
-fn dense(x: &[f32], rows: usize, w: &[f32], b: &[f32], out: &mut [f32], isa: Isa) {
+/// each output summed over the inputs in their order, then the bias added, then the Leaky ReLU
+/// applied if `leaky` ([`activation`]). Every path computes each output by the same scalar
+/// operations in the same order, so all give the same bits.
+fn dense(x: &[f32], rows: usize, w: &[f32], b: &[f32], out: &mut [f32], leaky: bool, isa: Isa) {
     let (inputs, outputs) = (w.len() / b.len(), b.len());
     assert!(w.len() == inputs * outputs && x.len() >= rows * inputs && out.len() >= rows * outputs);
     let (x, out) = (&x[..rows * inputs], &mut out[..rows * outputs]);
@@ -166,15 +167,15 @@ fn dense(x: &[f32], rows: usize, w: &[f32], b: &[f32], out: &mut [f32], isa: Isa
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Isa::detect` found that this processor runs AVX-512F, the one requirement of
         // `dense_avx512` (safe code in every other respect).
-        Isa::Avx512 if outputs % 64 == 0 => unsafe { dense_avx512(x, w, b, out) },
+        Isa::Avx512 if outputs % 64 == 0 => unsafe { dense_avx512(x, w, b, out, leaky) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `Isa::detect` found that this processor runs AVX2, the one requirement.
-        Isa::Avx2 if outputs % 64 == 0 => unsafe { dense_avx2(x, w, b, out) },
+        Isa::Avx2 if outputs % 64 == 0 => unsafe { dense_avx2(x, w, b, out, leaky) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: this processor runs AVX2 (every AVX-512F processor does), the one requirement.
-        Isa::Avx2 | Isa::Avx512 if outputs % 16 == 0 => unsafe { dense_avx2_narrow(x, w, b, out) },
-        _ if outputs == 1 => dense_blocked::<8, 1>(x, w, b, out),
-        _ => dense_rows(x, w, b, out),
+        Isa::Avx2 | Isa::Avx512 if outputs % 16 == 0 => unsafe { dense_avx2_narrow(x, w, b, out, leaky) },
+        _ if outputs == 1 => dense_blocked::<8, 1>(x, w, b, out, leaky),
+        _ => dense_rows(x, w, b, out, leaky),
     }
 }
 
@@ -184,22 +185,22 @@ fn dense(x: &[f32], rows: usize, w: &[f32], b: &[f32], out: &mut [f32], isa: Isa
 /// [`dense`] with AVX-512F code generation: 2 rows by 64 outputs at a time.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn dense_avx512(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
-    dense_blocked::<2, 64>(x, w, b, out);
+fn dense_avx512(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32], leaky: bool) {
+    dense_blocked::<2, 64>(x, w, b, out, leaky);
 }
 
 /// [`dense`] with AVX2 code generation: one row by 64 outputs at a time.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn dense_avx2(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
-    dense_blocked::<1, 64>(x, w, b, out);
+fn dense_avx2(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32], leaky: bool) {
+    dense_blocked::<1, 64>(x, w, b, out, leaky);
 }
 
 /// [`dense`] with AVX2 code generation for layers of a multiple of 16 outputs: 4 rows by 16.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn dense_avx2_narrow(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
-    dense_blocked::<4, 16>(x, w, b, out);
+fn dense_avx2_narrow(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32], leaky: bool) {
+    dense_blocked::<4, 16>(x, w, b, out, leaky);
 }
 
 /// [`dense`] in blocks of `R` rows by `W` outputs whose `R x W` sums stay in registers (so each
@@ -208,7 +209,13 @@ fn dense_avx2_narrow(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
 /// multiplies and adds (Rust does not fuse them), each sum over the inputs in their order: the
 /// compiler vectorises across the `W` outputs, which does not change any output's bits.
 #[inline(always)]
-fn dense_blocked<const R: usize, const W: usize>(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
+fn dense_blocked<const R: usize, const W: usize>(
+    x: &[f32],
+    w: &[f32],
+    b: &[f32],
+    out: &mut [f32],
+    leaky: bool,
+) {
     let (inputs, outputs) = (w.len() / b.len(), b.len());
     let full = x.len() / inputs / R * R;
     for (xs, os) in x[..full * inputs]
@@ -229,27 +236,27 @@ fn dense_blocked<const R: usize, const W: usize>(x: &[f32], w: &[f32], b: &[f32]
             for (r, sums) in acc.iter().enumerate() {
                 let o = &mut os[r * outputs + j0..][..W];
                 for ((o, &s), &bl) in o.iter_mut().zip(sums).zip(&b[j0..j0 + W]) {
-                    *o = s + bl;
+                    *o = activation(s + bl, leaky);
                 }
             }
         }
     }
     if full * inputs < x.len() {
-        dense_rows(&x[full * inputs..], w, b, &mut out[full * outputs..]);
+        dense_rows(&x[full * inputs..], w, b, &mut out[full * outputs..], leaky);
     }
 }
 
 /// [`dense`] one row and one output at a time.
-fn dense_rows(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32]) {
-    dense_blocked::<1, 1>(x, w, b, out);
+fn dense_rows(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32], leaky: bool) {
+    dense_blocked::<1, 1>(x, w, b, out, leaky);
 }
 
-/// Without a branch (a select the compiler vectorises): the signs of hidden units are
-/// unpredictable, and a mispredicted branch per unit cost more than the layer's products.
-fn leaky_relu(x: &mut [f32]) {
-    for v in x {
-        *v = if *v < 0.0 { *v * LEAKY_SLOPE } else { *v };
-    }
+/// The Leaky ReLU of `v` if `leaky`, else `v`. Applied as each output is stored, while it is
+/// in a register (a pass of its own over the layer cost as much again in memory traffic); a
+/// select the compiler vectorises, as the signs of hidden units are unpredictable.
+#[inline(always)]
+fn activation(v: f32, leaky: bool) -> f32 {
+    if leaky && v < 0.0 { v * LEAKY_SLOPE } else { v }
 }
 
 impl PolicyEnsemble {
@@ -316,11 +323,9 @@ impl PolicyEnsemble {
         let g = self.spec.action_scale as f32;
         for (member, y) in self.members.iter().zip(each.chunks_exact_mut(rows.max(1))) {
             let [(w1, b1), (w2, b2), (w3, b3)] = &member.layers;
-            dense(x, rows, w1, b1, h1, self.isa);
-            leaky_relu(h1);
-            dense(h1, rows, w2, b2, h2, self.isa);
-            leaky_relu(h2);
-            dense(h2, rows, w3, b3, y, self.isa);
+            dense(x, rows, w1, b1, h1, true, self.isa);
+            dense(h1, rows, w2, b2, h2, true, self.isa);
+            dense(h2, rows, w3, b3, y, false, self.isa);
             for a in y.iter_mut() {
                 *a = a.tanh() * g;
             }
