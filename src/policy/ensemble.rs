@@ -205,9 +205,10 @@ fn dense_avx2_narrow(x: &[f32], w: &[f32], b: &[f32], out: &mut [f32], leaky: bo
 
 /// [`dense`] in blocks of `R` rows by `W` outputs whose `R x W` sums stay in registers (so each
 /// loaded weight serves `R` rows, and `R` independent sums hide the adds' latency), with
-/// `outputs` a multiple of `W`; the rows after the last full block go one at a time. Plain
-/// multiplies and adds (Rust does not fuse them), each sum over the inputs in their order: the
-/// compiler vectorises across the `W` outputs, which does not change any output's bits.
+/// `outputs` a multiple of `W`; the rows after the last full block go one at a time, still `W`
+/// outputs at once. Plain multiplies and adds (Rust does not fuse them), each sum over the
+/// inputs in their order: the compiler vectorises across the `W` outputs, which does not
+/// change any output's bits.
 #[inline(always)]
 fn dense_blocked<const R: usize, const W: usize>(
     x: &[f32],
@@ -218,31 +219,49 @@ fn dense_blocked<const R: usize, const W: usize>(
 ) {
     let (inputs, outputs) = (w.len() / b.len(), b.len());
     let full = x.len() / inputs / R * R;
-    for (xs, os) in x[..full * inputs]
+    let (x_blocks, x_rest) = x.split_at(full * inputs);
+    let (out_blocks, out_rest) = out.split_at_mut(full * outputs);
+    for (xs, os) in x_blocks
         .chunks_exact(R * inputs)
-        .zip(out.chunks_exact_mut(R * outputs))
+        .zip(out_blocks.chunks_exact_mut(R * outputs))
     {
-        for j0 in (0..outputs).step_by(W) {
-            let mut acc = [[0.0f32; W]; R];
-            for k in 0..inputs {
-                let wk: &[f32; W] = w[k * outputs + j0..][..W].try_into().expect("W weights");
-                for (r, sums) in acc.iter_mut().enumerate() {
-                    let xv = xs[r * inputs + k];
-                    for (s, &wl) in sums.iter_mut().zip(wk) {
-                        *s += xv * wl;
-                    }
-                }
-            }
-            for (r, sums) in acc.iter().enumerate() {
-                let o = &mut os[r * outputs + j0..][..W];
-                for ((o, &s), &bl) in o.iter_mut().zip(sums).zip(&b[j0..j0 + W]) {
-                    *o = activation(s + bl, leaky);
+        dense_block::<R, W>(xs, w, b, os, leaky);
+    }
+    for (xs, os) in x_rest
+        .chunks_exact(inputs)
+        .zip(out_rest.chunks_exact_mut(outputs))
+    {
+        dense_block::<1, W>(xs, w, b, os, leaky);
+    }
+}
+
+/// `R` rows of [`dense_blocked`].
+#[inline(always)]
+fn dense_block<const R: usize, const W: usize>(
+    xs: &[f32],
+    w: &[f32],
+    b: &[f32],
+    os: &mut [f32],
+    leaky: bool,
+) {
+    let (inputs, outputs) = (w.len() / b.len(), b.len());
+    for j0 in (0..outputs).step_by(W) {
+        let mut acc = [[0.0f32; W]; R];
+        for k in 0..inputs {
+            let wk: &[f32; W] = w[k * outputs + j0..][..W].try_into().expect("W weights");
+            for (r, sums) in acc.iter_mut().enumerate() {
+                let xv = xs[r * inputs + k];
+                for (s, &wl) in sums.iter_mut().zip(wk) {
+                    *s += xv * wl;
                 }
             }
         }
-    }
-    if full * inputs < x.len() {
-        dense_rows(&x[full * inputs..], w, b, &mut out[full * outputs..], leaky);
+        for (r, sums) in acc.iter().enumerate() {
+            let o = &mut os[r * outputs + j0..][..W];
+            for ((o, &s), &bl) in o.iter_mut().zip(sums).zip(&b[j0..j0 + W]) {
+                *o = activation(s + bl, leaky);
+            }
+        }
     }
 }
 
