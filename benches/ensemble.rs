@@ -1,6 +1,7 @@
 //! The deployment's forward pass: the five members of a traffic set acting on 25 vehicles (about
 //! the controlled vehicles of one co-simulation step on `i80_merge`), with the ensemble's plain
-//! Rust pass against libtorch's forward pass of each member.
+//! Rust pass against libtorch's forward pass of each member; and one network on an evaluation's
+//! batch (250 scenes x 9 players per thread).
 //!
 //! `cargo bench --bench ensemble` (or `make bench`).
 

@@ -3,6 +3,7 @@
 use crate::config::Config;
 use crate::engine::outcome::EpisodeOutcome;
 use crate::engine::rollout::{Recording, RolloutOptions, rollout};
+use crate::policy::ensemble::PolicyEnsemble;
 use crate::policy::network::PolicyNet;
 use crate::policy::observation::PolicyActor;
 use crate::world::drivers::Driver;
@@ -20,12 +21,17 @@ pub enum Others<'a> {
     Driver(Driver),
 }
 
-fn copies(net: &PolicyNet, n: usize) -> Result<Vec<crate::policy::ensemble::PolicyEnsemble>, tch::TchError> {
-    (0..n).map(|_| net.try_clone().map(Into::into)).collect()
+/// `n` copies of `net` on the plain-Rust forward pass ([`PolicyEnsemble`] of one member).
+fn copies(net: &PolicyNet, n: usize) -> Result<Vec<PolicyEnsemble>, tch::TchError> {
+    (0..n)
+        .map(|_| net.try_clone().map(PolicyEnsemble::from))
+        .collect()
 }
 
 /// Rolls `scenes` out with the network driving the ego and `others` the other players,
-/// keeping what `recording` says. Each worker thread gets its own copies of the networks.
+/// keeping what `recording` says. Each worker thread gets its own copies of the networks, run
+/// by the plain-Rust forward pass of deployment (the same actions as libtorch's within 1e-5
+/// m/s^2, and the same bits whatever the batch or the processor).
 pub fn policy_rollout(
     config: &Config,
     net: &PolicyNet,
@@ -35,7 +41,7 @@ pub fn policy_rollout(
     recording: Recording,
 ) -> Result<Vec<EpisodeOutcome>, tch::TchError> {
     let threads = threads.clamp(1, scenes.len().max(1));
-    let second: Vec<Option<crate::policy::ensemble::PolicyEnsemble>> = match others {
+    let second: Vec<Option<PolicyEnsemble>> = match others {
         Others::Network(o) => copies(o, threads)?.into_iter().map(Some).collect(),
         _ => (0..threads).map(|_| None).collect(),
     };
