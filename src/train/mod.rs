@@ -371,7 +371,12 @@ fn probe_outcomes<'env>(
         move |(net, scenes): (StackedNet, Vec<Scene>)| {
             let opts = RolloutOptions {
                 threads: 1,
-                recording: Recording::Summary,
+                // A single-agent ego's probe objective is its own return: the other players'
+                // rewards are not needed (the same bits, `tests/rollout.rs`).
+                recording: match mode {
+                    Mode::Mpg => Recording::Summary,
+                    Mode::Sarl => Recording::Ego,
+                },
                 ..RolloutOptions::from_config(config)
             };
             let frozen = Mutex::new(Some(net));
