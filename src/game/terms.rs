@@ -42,6 +42,12 @@ pub fn time_to_conflict<T: Num>(x: &T, v: &T, x_c: f64, eps: f64) -> T {
     x.add_c(-x_c).abs().div(&v.add_c(eps))
 }
 
+/// [`time_to_conflict`] signed, `(x_c - x) / (v + eps)`: negative once the vehicle has passed
+/// the conflict point (`reward.conflict_signed_time`).
+pub fn signed_time_to_conflict<T: Num>(x: &T, v: &T, x_c: f64, eps: f64) -> T {
+    x.add_c(-x_c).neg().div(&v.add_c(eps))
+}
+
 /// Different-lane time-gap-to-conflict-point term, eq. (28):
 /// `-1 / (sqrt(T_i T_j) (T_i - T_j)^2 + eps)`, with `T_i T_j + 1e-12` under the root.
 pub fn conflict_time_gap<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
@@ -92,8 +98,8 @@ pub fn conflict_time_gap_before<T: Num>(
 /// 1.5 s is penalised for 1.5 s, where `|x - x_c|` had them meet at `T_i = T_j`. Symmetric,
 /// and equal to [`conflict_time_gap`] while both vehicles are before `x_c`.
 pub fn conflict_time_gap_signed<T: Num>(x_i: &T, v_i: &T, x_j: &T, v_j: &T, x_c: f64, eps: f64) -> T {
-    let t_i = x_i.add_c(-x_c).neg().div(&v_i.add_c(eps));
-    let t_j = x_j.add_c(-x_c).neg().div(&v_j.add_c(eps));
+    let t_i = signed_time_to_conflict(x_i, v_i, x_c, eps);
+    let t_j = signed_time_to_conflict(x_j, v_j, x_c, eps);
     time_gap_penalty(&t_i, &t_j, t_i.mul(&t_j).abs(), eps)
 }
 
