@@ -194,6 +194,15 @@ impl MemberWeights {
 /// The PolicyNet variables of each layer, in order.
 const LAYERS: [&str; 3] = ["hidden1", "hidden2", "output"];
 
+/// A forward pass's hidden layers (after their activation), `tanh` of the output layer, and
+/// the actions, each with a leading member dimension.
+struct Pass {
+    h1: Tensor,
+    h2: Tensor,
+    t: Tensor,
+    actions: Tensor,
+}
+
 /// `members` networks of one [`NetSpec`], weights stacked along a leading dimension.
 #[derive(Debug)]
 pub struct StackedNet {
@@ -270,24 +279,9 @@ impl StackedNet {
         let (rows, cols) = (features[0].rows(), features[0].cols());
         let dim = self.spec.obs_dim;
         let mut x = observation_rows(layout, features);
-        for row in x.chunks_mut(dim) {
-            row.iter_mut()
-                .zip(&self.spec.obs_scale)
-                .for_each(|(v, s)| *v *= s);
-        }
-        let x0 = Tensor::from_slice(&x).reshape([self.members, -1, dim as i64]);
-        let w: Vec<Tensor> = self.params().map(Tensor::detach).collect();
+        let x0 = self.scaled(&mut x);
         let scale = self.spec.action_scale;
-        let (h1, h2, t, actions) = tch::no_grad(|| {
-            let mut h1 = w[1].baddbmm(&x0, &w[0], 1.0, 1.0);
-            let _ = h1.leaky_relu_();
-            let mut h2 = w[3].baddbmm(&h1, &w[2], 1.0, 1.0);
-            let _ = h2.leaky_relu_();
-            let z = (&h2 * w[4].transpose(1, 2)).sum_dim_intlist(-1, false, None) + w[5].squeeze_dim(-1);
-            let t = z.tanh();
-            let actions = &t * scale;
-            (h1, h2, t, actions)
-        });
+        let Pass { h1, h2, t, actions } = self.pass(&x0);
         let actions = Var::constant(
             floats(&actions).iter().map(|&a| f64::from(a)).collect(),
             rows,
@@ -340,6 +334,34 @@ impl StackedNet {
                     )
                 })
                 .collect()
+        })
+    }
+
+    /// Observation rows (raw SI values, row-major) scaled in place, as `[members, rows,
+    /// obs_dim]`.
+    fn scaled(&self, x: &mut [f32]) -> Tensor {
+        let dim = self.spec.obs_dim;
+        for row in x.chunks_mut(dim) {
+            row.iter_mut()
+                .zip(&self.spec.obs_scale)
+                .for_each(|(v, s)| *v *= s);
+        }
+        Tensor::from_slice(x).reshape([self.members, -1, dim as i64])
+    }
+
+    /// The forward pass of [`StackedNet::forward`] without gradient on scaled observations
+    /// `x0`, keeping what the backward pass reads.
+    fn pass(&self, x0: &Tensor) -> Pass {
+        let w: Vec<Tensor> = self.params().map(Tensor::detach).collect();
+        tch::no_grad(|| {
+            let mut h1 = w[1].baddbmm(x0, &w[0], 1.0, 1.0);
+            let _ = h1.leaky_relu_();
+            let mut h2 = w[3].baddbmm(&h1, &w[2], 1.0, 1.0);
+            let _ = h2.leaky_relu_();
+            let z = (&h2 * w[4].transpose(1, 2)).sum_dim_intlist(-1, false, None) + w[5].squeeze_dim(-1);
+            let t = z.tanh();
+            let actions = &t * self.spec.action_scale;
+            Pass { h1, h2, t, actions }
         })
     }
 
@@ -462,11 +484,9 @@ impl StackedNet {
 /// are member 0's, and so on.
 impl BatchPolicy for StackedNet {
     fn act(&mut self, obs: &[f32], rows: usize, out: &mut [f32]) {
-        let dim = self.spec.obs_dim as i64;
-        let input = Tensor::from_slice(&obs[..rows * dim as usize]).reshape([self.members, -1, dim]);
-        let actions = tch::no_grad(|| self.forward(&input)).flatten(0, -1);
-        let values = Vec::<f32>::try_from(actions).expect("a CPU float tensor");
-        out[..rows].copy_from_slice(&values);
+        let mut x = obs[..rows * self.spec.obs_dim].to_vec();
+        let actions = self.pass(&self.scaled(&mut x)).actions;
+        out[..rows].copy_from_slice(floats(&actions));
     }
 }
 
