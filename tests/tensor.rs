@@ -24,6 +24,7 @@ fn double(
         feasibility,
         terminate_on_collision,
         learning,
+        sums: tensor::Sums::Both,
     }
 }
 
@@ -51,7 +52,8 @@ fn compare(config: &Config, ego: Driver, others: Driver, feasibility: bool, term
         &double(steps, feasibility, terminate, tensor::Learning::All),
         |b, nb, _| idm_actions(config, b, nb).mul(&weights),
     );
-    let (returns, potential) = (t.returns.values(), t.potential.values());
+    let (returns, potential) = (t.returns.expect("both sums"), t.potential.expect("both sums"));
+    let (returns, potential) = (returns.values(), potential.values());
     let mut collisions = 0;
     for (k, o) in scalar.iter().enumerate() {
         collisions += usize::from(o.collision.is_some());
@@ -145,6 +147,7 @@ fn potential_gradient_matches_finite_differences() {
             |b, nb, _| idm_actions(&config, b, nb).add(theta),
         )
         .potential
+        .expect("both sums")
     };
     let mean = |theta: f64| {
         let p = phi(&Var::constant(vec![theta; scenes.len()], scenes.len(), 1));
@@ -226,7 +229,8 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
         tensor::Learning::Ego,
     );
     let t = tensor::rollout(&config, &scenes, &run, |b, _, _| b.x.full(0.0));
-    let potential = t.potential.values();
+    let potential = t.potential.expect("both sums");
+    let potential = potential.values();
     for (k, o) in scalar.iter().enumerate() {
         let tol = 1e-6 * o.potential_return.abs().max(1.0);
         assert!((o.potential_return - potential[k]).abs() < tol, "scenario {k}");
@@ -300,7 +304,8 @@ fn traffic_engines_agree(config: &Config) -> usize {
             Var::constant(actions, b.x.rows(), b.x.cols())
         },
     );
-    let potential = t.potential.values();
+    let potential = t.potential.expect("both sums");
+    let potential = potential.values();
     for (k, o) in scalar.iter().enumerate() {
         let tol = 1e-4 * o.potential_return.abs().max(1.0);
         assert!(

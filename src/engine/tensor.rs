@@ -311,8 +311,15 @@ impl Pairs {
     }
 }
 
-/// Rewards `r_i` (`[batch, agents]`) and potential `phi` (`[batch, 1]`) of the paper's reward.
-pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> (Var, Var) {
+/// Rewards `r_i` (`[batch, agents]`) and potential `phi` (`[batch, 1]`) of the paper's reward,
+/// each when `sums` asks for it.
+pub fn rewards(
+    config: &Config,
+    pairs: &Pairs,
+    batch: &TensorBatch,
+    u: &Var,
+    sums: Sums,
+) -> (Option<Var>, Option<Var>) {
     let r = &config.reward;
     let x_c = config.scenario.conflict_point;
     // A scene's own desired speed comes with its weight factor (`speed_weight`).
@@ -349,7 +356,12 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
             terms::conflict_term(conflict_form, &xi, &vi, &xj, &vj, x_c, r.epsilon).mul_c(r.w_conflict)
         }
     });
-    let reward = own.add(&pair.pair_sums(&pairs.both, pairs.n));
+    let reward = sums
+        .returns()
+        .then(|| own.add(&pair.pair_sums(&pairs.both, pairs.n)));
+    if !sums.potential() {
+        return (reward, None);
+    }
     // Humans are no players: the potential holds the players' own terms and every pair with
     // at least one player (Theorem 3 over the players; a human's terms are not in any
     // player's reward). Without humans the masks are all ones and are left out (the same
@@ -362,7 +374,7 @@ pub fn rewards(config: &Config, pairs: &Pairs, batch: &TensorBatch, u: &Var) -> 
     } else {
         own.sum_cols().add(&pair.sum_cols())
     };
-    (reward, potential)
+    (reward, Some(potential))
 }
 
 /// Eq. (1) with zero steering, then the merge: a ramp player reaching the ramp's end, or merging early
@@ -401,13 +413,36 @@ pub fn advance(rules: &WorldRules, batch: &TensorBatch, u: &Var) -> TensorBatch 
     )
 }
 
-/// Discounted returns `[batch, agents]` and potential returns `[batch, 1]` of a rollout.
+/// Discounted returns `[batch, agents]` and potential returns `[batch, 1]` of a rollout, each
+/// when its [`TensorRun::sums`] asked for it.
 #[derive(Debug)]
 pub struct TensorReturns {
     /// `J_i` per scenario and player.
-    pub returns: Var,
+    pub returns: Option<Var>,
     /// `sum_t gamma^t phi` per scenario.
-    pub potential: Var,
+    pub potential: Option<Var>,
+}
+
+/// Which discounted sums a tensor rollout computes. Training back-propagates one of them; the
+/// other's operations would only lengthen the tape (each sum keeps its values either way).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sums {
+    /// The players' returns and the potential.
+    Both,
+    /// The potential only (the MPG objective).
+    Potential,
+    /// The players' returns only (the single-agent objective).
+    Returns,
+}
+
+impl Sums {
+    fn returns(self) -> bool {
+        self != Sums::Potential
+    }
+
+    fn potential(self) -> bool {
+        self != Sums::Returns
+    }
 }
 
 /// What a tensor rollout runs.
@@ -421,6 +456,8 @@ pub struct TensorRun {
     pub terminate_on_collision: bool,
     /// Which players a policy drives.
     pub learning: Learning,
+    /// Which discounted sums to compute.
+    pub sums: Sums,
 }
 
 /// Runs `run.steps` steps (on this thread's tape, where they depend on a leaf or a
@@ -439,11 +476,18 @@ pub fn rollout(
         feasibility,
         terminate_on_collision,
         learning,
+        sums,
     } = *run;
     let mut batch = TensorBatch::from_scenes(scenes);
     let (b, n) = (scenes.len(), scenes[0].len());
-    let mut returns = Var::constant(vec![0.0; b * n], b, n);
-    let mut potential = Var::constant(vec![0.0; b], b, 1);
+    let mut returns = sums.returns().then(|| Var::constant(vec![0.0; b * n], b, n));
+    let mut potential = sums.potential().then(|| Var::constant(vec![0.0; b], b, 1));
+    // Adds `weight` (`[batch, 1]`) times a step's value to a sum that is computed.
+    let accumulate = |sum: &mut Option<Var>, value: &Option<Var>, weight: &Var| {
+        if let (Some(s), Some(v)) = (sum.as_mut(), value) {
+            *s = s.add(&v.mul(weight));
+        }
+    };
     let mut alive = vec![1.0f64; scenes.len()];
     let mut discount = 1.0;
     let pairs = Pairs::new(n);
@@ -471,10 +515,10 @@ pub fn rollout(
             raw = Var::select(&batch.human, &idm_actions(config, &batch, &nb), &raw);
         }
         let u = apply_limits(&rules, &batch, &nb, &raw, feasibility, only.as_ref());
-        let (r, phi) = rewards(config, &pairs, &batch, &u);
+        let (r, phi) = rewards(config, &pairs, &batch, &u, sums);
         let live = Var::constant(alive.iter().map(|a| a * discount).collect(), b, 1);
-        returns = returns.add(&r.mul(&live));
-        potential = potential.add(&phi.mul(&live));
+        accumulate(&mut returns, &r, &live);
+        accumulate(&mut potential, &phi, &live);
         batch = advance(&rules, &batch, &u);
         if terminate_on_collision {
             let mut crashed = vec![0.0f64; alive.len()];
@@ -489,8 +533,8 @@ pub fn rollout(
             if config.sim.absorbing_collision && crashed.contains(&1.0) {
                 let w = tail_weight(config.sim.gamma, step, steps);
                 let tail = Var::constant(crashed.iter().map(|c| c * w).collect(), b, 1);
-                returns = returns.add(&r.mul(&tail));
-                potential = potential.add(&phi.mul(&tail));
+                accumulate(&mut returns, &r, &tail);
+                accumulate(&mut potential, &phi, &tail);
             }
         }
         discount *= config.sim.gamma;

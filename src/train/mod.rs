@@ -330,6 +330,10 @@ fn shard_gradient(
             Mode::Mpg => tensor::Learning::All,
             Mode::Sarl => tensor::Learning::Ego,
         },
+        sums: match mode {
+            Mode::Mpg => tensor::Sums::Potential,
+            Mode::Sarl => tensor::Sums::Returns,
+        },
     };
     let grads = ParamGrads::default();
     tape::start();
@@ -340,7 +344,8 @@ fn shard_gradient(
     let root = match mode {
         Mode::Mpg => out.potential,
         Mode::Sarl => out.returns,
-    };
+    }
+    .expect("the run's sums hold its objective");
     let cols = root.cols();
     let sums = root
         .values()
