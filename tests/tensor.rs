@@ -322,3 +322,37 @@ fn traffic_engines_agree(config: &Config) -> usize {
         .filter(|v| v.on_ramp && v.x >= x_c)
         .count()
 }
+
+#[test]
+fn a_rollout_asked_for_one_sum_gives_its_values_bit_for_bit() {
+    // Training asks for the sum it back-propagates alone; it must be the sum a rollout asked
+    // for both computes, bit for bit, also after collisions (constant speed without the
+    // projection crashes, and the absorbing tail charges the collision step's values).
+    let config = paper();
+    let scenes = sample_scenes(&config, 17, 0, 24);
+    let run = |sums: tensor::Sums| {
+        let run = tensor::TensorRun {
+            sums,
+            ..double(150, false, true, tensor::Learning::All)
+        };
+        tensor::rollout(&config, &scenes, &run, |b, _, _| b.x.full(0.0))
+    };
+    let both = run(tensor::Sums::Both);
+    let (potential, returns) = (run(tensor::Sums::Potential), run(tensor::Sums::Returns));
+    assert!(potential.returns.is_none() && returns.potential.is_none());
+    let values = |v: Option<Var>| v.expect("asked for").values().to_vec();
+    assert_eq!(values(potential.potential), values(both.potential));
+    assert_eq!(values(returns.returns), values(both.returns));
+    let opts = RolloutOptions {
+        feasibility: false,
+        steps: 150,
+        ..RolloutOptions::from_config(&config)
+    };
+    let scalar = rollout(&config, &opts, &scenes, || {
+        DriverActor::new(&config, Driver::ConstSpeed, Driver::ConstSpeed)
+    });
+    assert!(
+        scalar.iter().any(|o| o.collision.is_some()),
+        "some episodes crash"
+    );
+}
