@@ -203,6 +203,21 @@ struct Pass {
     actions: Tensor,
 }
 
+/// The stacked layers (`w`: each layer's weights, then bias, as [`StackedNet`] holds them) on
+/// scaled observations `x0`.
+fn layers(w: &[Tensor], x0: &Tensor, action_scale: f64) -> Pass {
+    let mut h1 = w[1].baddbmm(x0, &w[0], 1.0, 1.0);
+    let _ = h1.leaky_relu_(); // in place: autograd keeps one tensor instead of two
+    let mut h2 = w[3].baddbmm(&h1, &w[2], 1.0, 1.0);
+    let _ = h2.leaky_relu_();
+    // The single-output layer as a product and a sum: a batched product with one output
+    // column takes another kernel whose result depends on the number of members.
+    let z = (&h2 * w[4].transpose(1, 2)).sum_dim_intlist(-1, false, None) + w[5].squeeze_dim(-1);
+    let t = z.tanh();
+    let actions = &t * action_scale;
+    Pass { h1, h2, t, actions }
+}
+
 /// `members` networks of one [`NetSpec`], weights stacked along a leading dimension.
 #[derive(Debug)]
 pub struct StackedNet {
@@ -253,16 +268,9 @@ impl StackedNet {
     /// Actions `[members, rows]` for observations `[members, rows, obs_dim]` (raw SI values):
     /// member `k`'s network on its own rows.
     pub fn forward(&self, obs: &Tensor) -> Tensor {
-        let mut x = obs.to_kind(Kind::Float) * &self.scale;
-        for (w, b) in &self.layers[..2] {
-            x = b.baddbmm(&x, w, 1.0, 1.0);
-            let _ = x.leaky_relu_(); // in place: autograd keeps one tensor instead of two
-        }
-        // The single-output layer as a product and a sum: a batched product with one output
-        // column takes another kernel whose result depends on the number of members.
-        let (w, b) = &self.layers[2];
-        let z = (x * w.transpose(1, 2)).sum_dim_intlist(-1, false, None) + b.squeeze_dim(-1);
-        z.tanh() * self.spec.action_scale
+        let x0 = obs.to_kind(Kind::Float) * &self.scale;
+        let w: Vec<Tensor> = self.params().map(Tensor::shallow_clone).collect();
+        layers(&w, &x0, self.spec.action_scale).actions
     }
 
     /// The actions of every element of `features` (one `[rows, cols]` array per feature; the
@@ -353,16 +361,7 @@ impl StackedNet {
     /// `x0`, keeping what the backward pass reads.
     fn pass(&self, x0: &Tensor) -> Pass {
         let w: Vec<Tensor> = self.params().map(Tensor::detach).collect();
-        tch::no_grad(|| {
-            let mut h1 = w[1].baddbmm(x0, &w[0], 1.0, 1.0);
-            let _ = h1.leaky_relu_();
-            let mut h2 = w[3].baddbmm(&h1, &w[2], 1.0, 1.0);
-            let _ = h2.leaky_relu_();
-            let z = (&h2 * w[4].transpose(1, 2)).sum_dim_intlist(-1, false, None) + w[5].squeeze_dim(-1);
-            let t = z.tanh();
-            let actions = &t * self.spec.action_scale;
-            Pass { h1, h2, t, actions }
-        })
+        tch::no_grad(|| layers(&w, x0, self.spec.action_scale))
     }
 
     /// Sets each parameter's gradient to `grads` (as [`ParamGrads`] sums them).
