@@ -150,7 +150,7 @@ fn every_top_level_module_has_a_layer() {
 fn an_edge_against_the_order_is_caught() {
     // A copy of src with one upward edge added: the world using the engine.
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let tmp = std::env::temp_dir().join(format!("mpgdrive-arch-{}", std::process::id()));
+    let tmp = Path::new(env!("CARGO_TARGET_TMPDIR")).join("arch");
     copy_dir(&src, &tmp);
     let step = tmp.join("world/step.rs");
     let text = std::fs::read_to_string(&step).unwrap();

@@ -5,7 +5,7 @@ use mpgdrive::sumo::MergeGeometry;
 use std::path::{Path, PathBuf};
 
 fn out_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-routes-{}-{name}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("routes-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }

@@ -13,7 +13,7 @@ fn smoke_text() -> String {
 
 /// Writes `text` to a fresh temporary config file.
 fn temp_config(name: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(format!("{name}.toml"));
     std::fs::write(&path, text).unwrap();
@@ -83,7 +83,7 @@ fn training_settings_that_would_panic_or_give_nan_are_rejected_by_key() {
 
 #[test]
 fn resume_says_when_there_is_no_checkpoint_and_refuses_a_foreign_one() {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-resume-{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-resume");
     let _ = std::fs::remove_dir_all(&dir);
     let config = temp_config("resume", &smoke_text().replace("epochs = 15 ", "epochs = 2 "));
     let train = |config: &Path| {
@@ -124,7 +124,7 @@ fn resume_says_when_there_is_no_checkpoint_and_refuses_a_foreign_one() {
 
 #[test]
 fn a_policy_trained_under_other_world_rules_is_refused_by_setting() {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-rules-{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-rules");
     let _ = std::fs::remove_dir_all(&dir);
     let tiny = smoke_text().replace("epochs = 15 ", "epochs = 1 ");
     let out = bin()
@@ -250,7 +250,7 @@ fn check_mpg_exact_json_reports_every_player_below_1e_9() {
 
 #[test]
 fn train_then_eval_end_to_end_and_deterministic() {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-cli-train-{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-train");
     let _ = std::fs::remove_dir_all(&dir);
     let out = bin()
         .args([
@@ -368,7 +368,7 @@ fn training_killed_with_sigkill_resumes_from_its_last_checkpoint() {
     let text = smoke_text().replace("epochs = 15 ", "epochs = 60 "); // a checkpoint every 5
     assert!(text.contains("epochs = 60 "));
     let config = temp_config("kill9", &text);
-    let base = std::env::temp_dir().join(format!("mpgdrive-cli-{}-kill9", std::process::id()));
+    let base = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-kill9");
     let _ = std::fs::remove_dir_all(&base);
     let train = |out: &Path, resume: bool| {
         let mut c = bin();

@@ -56,9 +56,10 @@ pub fn cosim_json(args: &[&str], sumocfg: &Path, out: &Path) -> (serde_json::Val
     (serde_json::from_slice(&output.stdout).unwrap(), stderr)
 }
 
-/// A fresh, empty temporary directory for this test process.
+/// A fresh, empty directory for a test under Cargo's scratch directory (target/tmp), so a
+/// run leaves one set, which the next run replaces and `cargo clean` removes.
 pub fn fresh_dir(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-{}-{name}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir

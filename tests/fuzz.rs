@@ -113,7 +113,7 @@ fn fuzz(target: &str, corpus: &[Vec<u8>], check: impl Fn(&Path)) {
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
         .map(Duration::from_secs_f64);
-    let dir = std::env::temp_dir().join(format!("mpgdrive-fuzz-{}-{target}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("fuzz-{target}"));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("input");
     let mut rng = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1);
@@ -196,7 +196,7 @@ fn fuzz_merge_toml_parser() {
 #[test]
 fn fuzz_route_generator_base_file() {
     let geometry = MergeGeometry::load(&root().join("sumo_nets/i80_merge/merge.toml")).unwrap();
-    let out = std::env::temp_dir().join(format!("mpgdrive-fuzz-{}-routes-out", std::process::id()));
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("fuzz-routes-out");
     let spec = DemandSpec {
         scales: vec![0.5],
         ramp_share: None,

@@ -9,7 +9,7 @@ use mpgdrive::ngsim::smooth::{savgol, savgol_segments};
 use std::path::{Path, PathBuf};
 
 fn temp(name: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-ngsim-{}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("ngsim");
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();

@@ -7,14 +7,14 @@ use mpgdrive::policy::file::{self, PolicyError};
 use mpgdrive::policy::observation::Layout;
 use mpgdrive::policy::{NetSpec, PolicyNet};
 use mpgdrive::train::{Mode, TrainRun, curves, train, train_all};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use tch::Tensor;
 
 static NO_STOP: AtomicBool = AtomicBool::new(false);
 
 fn out_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("mpgdrive-train-{}-{name}", std::process::id()));
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("train-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     dir
 }
