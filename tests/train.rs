@@ -2,21 +2,19 @@
 
 mod common;
 
-use common::smoke;
+use common::{fresh_dir, smoke};
 use mpgdrive::policy::file::{self, PolicyError};
 use mpgdrive::policy::observation::Layout;
 use mpgdrive::policy::{NetSpec, PolicyNet};
 use mpgdrive::train::{Mode, TrainRun, curves, train, train_all};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use tch::Tensor;
 
 static NO_STOP: AtomicBool = AtomicBool::new(false);
 
 fn out_dir(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("train-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
+    fresh_dir(&format!("train-{name}"))
 }
 
 /// Mean probe objective of the first and of the last five epochs (single epochs are noisy).
