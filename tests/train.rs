@@ -206,6 +206,10 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
     assert_eq!(seen, vec![1, 2, 3]);
     let (_, side) = file::load(&dir.join("seed3.ckpt"), Layout::Table1 { players: 9 }).unwrap();
     assert_eq!(side.epochs, 3);
+    assert!(
+        dir.join("seed3.ckpt.adam.safetensors").exists(),
+        "Adam's state kept"
+    );
     let resumed = train(
         &config,
         &TrainRun {
@@ -217,6 +221,25 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
     )
     .unwrap();
     assert_eq!(resumed.len(), config.train.epochs);
+    assert!(
+        !dir.join("seed3.ckpt.adam.safetensors").exists(),
+        "removed with the checkpoint"
+    );
+    // Adam continues with its moments, so the run ends as one never stopped: the same
+    // weights, bit for bit, and the same curves.
+    let whole = out_dir("stop-whole");
+    let uninterrupted = train(&config, &run(Mode::Mpg, &whole), &NO_STOP, &mut |_| {}).unwrap();
+    let bytes = |d: &std::path::Path| std::fs::read(d.join("seed3.safetensors")).unwrap();
+    assert!(
+        bytes(&dir) == bytes(&whole),
+        "the resumed weights are the uninterrupted run's"
+    );
+    let key = |r: &[curves::EpochRecord]| {
+        r.iter()
+            .map(|x| (x.epoch, x.train_objective, x.probe_objective, x.action_msd))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(key(&resumed), key(&uninterrupted));
 }
 
 fn sample_net() -> PolicyNet {

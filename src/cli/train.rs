@@ -95,6 +95,12 @@ fn warn_missing_checkpoints(runs: &[TrainRun]) {
                 run.seed,
                 ckpt.display()
             );
+        } else if !mpgdrive::train::moments_path(&run.out).exists() {
+            eprintln!(
+                "seed {}: checkpoint {}.json has no optimiser state (an older checkpoint); Adam's moments restart",
+                run.seed,
+                ckpt.display()
+            );
         }
     }
 }

@@ -12,6 +12,7 @@
 //! fixed probe set (disjoint from training) in the scalar engine: mean objective, collision and
 //! failure rates, and the mean squared difference of the probe actions from the previous epoch.
 
+pub mod adam;
 pub mod curves;
 pub mod stacked;
 pub mod workers;
@@ -33,13 +34,14 @@ use crate::world::drivers::Driver;
 use crate::world::neighbors::find_neighbors;
 use crate::world::sampler::{Purpose, purpose_seed, sample_scenes, sample_training_scenes};
 use crate::world::state::Scene;
+use adam::{Adam, MemberMoments};
 use curves::EpochRecord;
 use stacked::{ParamGrads, StackedNet};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
-use tch::{Kind, Tensor, nn::OptimizerConfig};
+use tch::{Kind, Tensor};
 use workers::Workers;
 
 /// A training failure.
@@ -111,6 +113,11 @@ pub struct TrainRun {
 /// The checkpoint base path of a run.
 pub fn checkpoint_path(out: &Path) -> PathBuf {
     with_suffix(out, ".ckpt")
+}
+
+/// The optimiser state that goes with a run's checkpoint (Adam's steps and moments).
+pub fn moments_path(out: &Path) -> PathBuf {
+    with_suffix(out, ".ckpt.adam.safetensors")
 }
 
 /// The curves CSV path of a run.
@@ -219,20 +226,20 @@ pub fn learning_rate(t: &crate::config::TrainConfig, epoch: usize) -> f64 {
 struct Stack {
     mode: Mode,
     net: StackedNet,
-    opt: tch::nn::Optimizer,
+    adam: Adam,
     seeds: Vec<u64>,
 }
 
 impl Stack {
-    fn new(config: &Config, mode: Mode, nets: &[PolicyNet], seeds: Vec<u64>) -> Result<Self, TrainError> {
+    fn new(mode: Mode, nets: &[PolicyNet], seeds: Vec<u64>) -> Self {
         let net = StackedNet::from_nets(nets);
-        let opt = tch::nn::Adam::default().build(&net.vs, config.train.learning_rate)?;
-        Ok(Stack {
+        let adam = Adam::new(&net.param_lengths());
+        Stack {
             mode,
             net,
-            opt,
+            adam,
             seeds,
-        })
+        }
     }
 
     /// One epoch of Algorithm 1 for every member: gradient ascent on its objective over its
@@ -245,7 +252,6 @@ impl Stack {
         epoch: usize,
     ) -> Result<Vec<f64>, TrainError> {
         let t = &config.train;
-        self.opt.set_lr(learning_rate(t, epoch));
         let scenes: Vec<Scene> = self
             .seeds
             .iter()
@@ -275,12 +281,12 @@ impl Stack {
         if let Some(k) = values.iter().position(|v| !v.is_finite()) {
             return Err(diverged(k, values[k]));
         }
-        self.opt.zero_grad();
+        self.net.zero_grads();
         if let Some(sums) = sums {
             self.net.set_grads(&sums);
         }
         self.net.clip_grad_norm(t.grad_clip);
-        self.opt.step();
+        self.net.adam_step(&mut self.adam, learning_rate(t, epoch));
         // A NaN gradient would poison the parameters without changing this epoch's objective.
         if let Some(k) = self.net.finite().iter().position(|ok| !ok) {
             return Err(diverged(k, f64::NAN));
@@ -520,7 +526,7 @@ fn screen_inits<'env>(
         .map(|(seed, c)| (PolicyNet::seeded(spec.clone(), init_seed(seed, c)), seed))
         .collect();
     let (nets, seeds): (Vec<PolicyNet>, Vec<u64>) = members.into_iter().unzip();
-    let mut stack = Stack::new(config, mode, &nets, seeds)?;
+    let mut stack = Stack::new(mode, &nets, seeds);
     for epoch in 0..t.screen_epochs {
         stack.gradient_step(config, workers, epoch)?;
     }
@@ -559,6 +565,8 @@ struct Start {
     net: PolicyNet,
     records: Vec<EpochRecord>,
     screening: Option<InitScreening>,
+    /// Adam's state at the checkpoint, when it was saved with it.
+    moments: Option<MemberMoments>,
 }
 
 fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
@@ -590,10 +598,22 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
         let curves = curves_path(&run.out);
         let mut records = curves::read(&curves).map_err(io_error(&curves))?;
         records.truncate(side.epochs);
+        // A checkpoint written before the optimiser state was kept has none; a state of
+        // another epoch (a crash between the two files) is not used either.
+        let moments = moments_path(&run.out);
+        let moments = match moments.exists() {
+            true => MemberMoments::load(
+                &moments,
+                &StackedNet::from_nets(std::slice::from_ref(&net)).param_lengths(),
+            )?
+            .filter(|m| m.steps == side.epochs as u64),
+            false => None,
+        };
         return Ok(Start {
             net,
             records,
             screening,
+            moments,
         });
     }
     Ok(Start {
@@ -603,6 +623,7 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
         ),
         records: Vec::new(),
         screening: None,
+        moments: None,
     })
 }
 
@@ -757,7 +778,13 @@ fn train_members<'env>(
         .iter()
         .map(|(_, s)| s.net.try_clone())
         .collect::<Result<_, _>>()?;
-    let mut stack = Stack::new(config, mode, &nets, members.iter().map(|(r, _)| r.seed).collect())?;
+    let mut stack = Stack::new(mode, &nets, members.iter().map(|(r, _)| r.seed).collect());
+    // Resumed runs continue Adam where it stopped when every member kept its state;
+    // otherwise the moments restart (as for checkpoints written before they were kept).
+    let moments: Option<Vec<MemberMoments>> = members.iter().map(|(_, s)| s.moments.clone()).collect();
+    if let Some(moments) = moments {
+        stack.adam = Adam::of_members(&moments);
+    }
     let probe_set = member_seeds_probe(config, &stack.seeds);
     let mut previous = probe_actions(config, &mut stack.net, &probe_set);
     let mut records: Vec<Vec<EpochRecord>> = members.iter().map(|(_, s)| s.records.clone()).collect();
@@ -780,6 +807,11 @@ fn train_members<'env>(
         if checkpoint {
             for (k, (run, s)) in members.iter().enumerate() {
                 let net = stack.net.member(k)?;
+                // The state first: the sidecar written last marks the checkpoint complete.
+                stack
+                    .adam
+                    .member(k, members.len())
+                    .save(&moments_path(&run.out))?;
                 save_run(
                     config,
                     run,
@@ -808,7 +840,7 @@ fn train_members<'env>(
             &s.screening,
         )?;
         let ckpt = checkpoint_path(&run.out);
-        for path in [file::paths(&ckpt).0, file::paths(&ckpt).1] {
+        for path in [file::paths(&ckpt).0, file::paths(&ckpt).1, moments_path(&run.out)] {
             let _ = std::fs::remove_file(path); // the finished policy supersedes the checkpoint
         }
         outcomes.push(TrainOutcome {

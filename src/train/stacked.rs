@@ -14,6 +14,7 @@
 use crate::engine::tape::Var;
 use crate::policy::network::{LEAKY_SLOPE, NetSpec, PolicyNet};
 use crate::policy::observation::{BatchPolicy, Layout, observation_rows};
+use crate::train::adam::Adam;
 use std::cell::RefCell;
 use std::rc::Rc;
 use tch::{Device, Kind, Tensor, nn};
@@ -43,8 +44,9 @@ fn floats(t: &Tensor) -> &[f32] {
 /// The values of a contiguous CPU float tensor, to write in place.
 fn floats_mut(t: &mut Tensor) -> &mut [f32] {
     assert_plain_floats(t);
-    // SAFETY: as in `floats`; the exclusive borrow of the handle stands for its storage,
-    // which no other handle shares (the tensors written here are fresh products).
+    // SAFETY: as in `floats`; the exclusive borrow of the handle stands for its storage while
+    // the slice lives: the tensors written here are fresh products, or the stacked parameters
+    // during an optimiser step, which nothing else reads meanwhile.
     unsafe { std::slice::from_raw_parts_mut(t.data_ptr() as *mut f32, t.numel()) }
 }
 
@@ -362,6 +364,33 @@ impl StackedNet {
     fn pass(&self, x0: &Tensor) -> Pass {
         let w: Vec<Tensor> = self.params().map(Tensor::detach).collect();
         tch::no_grad(|| layers(&w, x0, self.spec.action_scale))
+    }
+
+    /// The number of values of each stacked parameter, in the order of [`StackedNet::adam_step`].
+    pub fn param_lengths(&self) -> Vec<usize> {
+        self.params().map(Tensor::numel).collect()
+    }
+
+    /// Forgets the parameters' gradients (before [`StackedNet::set_grads`]).
+    pub fn zero_grads(&mut self) {
+        for (w, b) in &mut self.layers {
+            w.zero_grad();
+            b.zero_grad();
+        }
+    }
+
+    /// One step of `adam` (of step size `lr`) on every stacked parameter along its gradient.
+    /// Adam is element-wise, so each member moves as it would alone.
+    pub fn adam_step(&mut self, adam: &mut Adam, lr: f64) {
+        let grads: Vec<Tensor> = self.params().map(Tensor::grad).collect();
+        let grads: Vec<&[f32]> = grads.iter().map(floats).collect();
+        let mut params: Vec<&mut [f32]> = self
+            .layers
+            .iter_mut()
+            .flat_map(|(w, b)| [w, b])
+            .map(floats_mut)
+            .collect();
+        adam.step(lr, &mut params, &grads);
     }
 
     /// Sets each parameter's gradient to `grads` (as [`ParamGrads`] sums them).
