@@ -82,7 +82,7 @@ fn training_settings_that_would_panic_or_give_nan_are_rejected_by_key() {
 }
 
 #[test]
-fn resume_says_when_there_is_no_checkpoint_and_refuses_a_foreign_one() {
+fn resume_says_when_there_is_no_checkpoint_or_optimiser_state_and_refuses_a_foreign_one() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-resume");
     let _ = std::fs::remove_dir_all(&dir);
     let config = temp_config("resume", &smoke_text().replace("epochs = 15 ", "epochs = 2 "));
@@ -102,14 +102,27 @@ fn resume_says_when_there_is_no_checkpoint_and_refuses_a_foreign_one() {
         stderr.contains("no checkpoint") && stderr.contains("trains from the start"),
         "{stderr}"
     );
+    // A checkpoint of this run without Adam's state (as older versions wrote them): resumed,
+    // with a warning that the moments restart.
+    let checkpoint = || {
+        for ext in ["json", "safetensors"] {
+            std::fs::copy(
+                dir.join(format!("seed0.{ext}")),
+                dir.join(format!("seed0.ckpt.{ext}")),
+            )
+            .unwrap();
+        }
+    };
+    checkpoint();
+    let out = train(&config);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("no optimiser state") && stderr.contains("moments restart"),
+        "{stderr}"
+    );
     // A checkpoint of this run, resumed under another learning rate: refused as bad input.
-    for ext in ["json", "safetensors"] {
-        std::fs::copy(
-            dir.join(format!("seed0.{ext}")),
-            dir.join(format!("seed0.ckpt.{ext}")),
-        )
-        .unwrap();
-    }
+    checkpoint();
     let other = temp_config(
         "resume-other",
         &smoke_text()
