@@ -60,7 +60,7 @@ impl UserFacing for crate::train::TrainError {
         use crate::train::TrainError as E;
         match self {
             E::Policy(e) => e.is_user_error(),
-            E::ForeignCheckpoint { .. } => true,
+            E::ForeignCheckpoint { .. } | E::OptimiserState { .. } => true,
             E::Io { .. } | E::Interrupted { .. } | E::Diverged { .. } | E::Torch(_) => false,
         }
     }

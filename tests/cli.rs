@@ -82,7 +82,7 @@ fn training_settings_that_would_panic_or_give_nan_are_rejected_by_key() {
 }
 
 #[test]
-fn resume_says_when_there_is_no_checkpoint_or_optimiser_state_and_refuses_a_foreign_one() {
+fn resume_says_when_there_is_no_checkpoint_or_optimiser_state_and_refuses_foreign_or_corrupt_ones() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-resume");
     let _ = std::fs::remove_dir_all(&dir);
     let config = temp_config("resume", &smoke_text().replace("epochs = 15 ", "epochs = 2 "));
@@ -121,8 +121,19 @@ fn resume_says_when_there_is_no_checkpoint_or_optimiser_state_and_refuses_a_fore
         stderr.contains("no optimiser state") && stderr.contains("moments restart"),
         "{stderr}"
     );
-    // A checkpoint of this run, resumed under another learning rate: refused as bad input.
+    // A checkpoint whose optimiser state is corrupted: refused as bad input, naming the file.
     checkpoint();
+    let state = dir.join("seed0.ckpt.adam.safetensors");
+    std::fs::write(&state, b"not a safetensors file").unwrap();
+    let out = train(&config);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("seed0.ckpt.adam.safetensors") && stderr.contains("remove it"),
+        "{stderr}"
+    );
+    std::fs::remove_file(&state).unwrap();
+    // A checkpoint of this run, resumed under another learning rate: refused as bad input.
     let other = temp_config(
         "resume-other",
         &smoke_text()

@@ -157,36 +157,37 @@ impl MemberMoments {
         std::fs::rename(&tmp, path).map_err(tch::TchError::Io)
     }
 
-    /// Reads a state that [`MemberMoments::save`] wrote for arrays of `lengths` values.
-    /// `None` when the file does not hold such a state.
-    pub fn load(path: &Path, lengths: &[usize]) -> Result<Option<Self>, tch::TchError> {
-        let named: std::collections::HashMap<String, Tensor> =
-            Tensor::read_safetensors(path)?.into_iter().collect();
-        let floats = |name: &str, len: usize| -> Option<Vec<f32>> {
-            let t = named.get(name).filter(|t| t.kind() == tch::Kind::Float)?;
-            Vec::<f32>::try_from(t).ok().filter(|v| v.len() == len)
+    /// Reads a state that [`MemberMoments::save`] wrote for arrays of `lengths` values; the
+    /// message says what is wrong with a file that does not hold one.
+    pub fn load(path: &Path, lengths: &[usize]) -> Result<Self, String> {
+        let named: std::collections::HashMap<String, Tensor> = Tensor::read_safetensors(path)
+            .map_err(|e| e.to_string())?
+            .into_iter()
+            .collect();
+        let mismatch = || "not Adam's state of this network".to_string();
+        let floats = |name: &str, len: usize| -> Result<Vec<f32>, String> {
+            let t = named.get(name).filter(|t| t.kind() == tch::Kind::Float);
+            let values = t.and_then(|t| Vec::<f32>::try_from(t).ok());
+            values.filter(|v| v.len() == len).ok_or_else(mismatch)
         };
         let steps = named
             .get("steps")
             .filter(|t| t.kind() == tch::Kind::Int64 && t.numel() == 1)
-            .map(|t| t.int64_value(&[0]));
-        let (Some(steps), true) = (steps, named.len() == 1 + 2 * lengths.len()) else {
-            return Ok(None);
-        };
+            .map(|t| t.int64_value(&[0]))
+            .and_then(|s| u64::try_from(s).ok())
+            .filter(|_| named.len() == 1 + 2 * lengths.len())
+            .ok_or_else(mismatch)?;
         let moments = lengths
             .iter()
             .enumerate()
             .map(|(i, &n)| {
-                Some(Moments {
+                Ok(Moments {
                     mean: floats(&format!("{i}.mean"), n)?,
                     square: floats(&format!("{i}.square"), n)?,
                 })
             })
-            .collect::<Option<Vec<_>>>();
-        Ok(moments.filter(|_| steps >= 0).map(|moments| MemberMoments {
-            steps: steps as u64,
-            moments,
-        }))
+            .collect::<Result<Vec<_>, String>>()?;
+        Ok(MemberMoments { steps, moments })
     }
 }
 
@@ -205,6 +206,8 @@ mod tests {
         // Arrays of the lengths of a stack's parameters, odd ones included (libtorch's loops
         // run 8 or 16 lanes and a scalar tail), with gradients of many magnitudes, a learning
         // rate that changes every step, and tch's Adam on the same values as the reference.
+        // (A correctly rounded square root in place of libtorch's misses about 1 value in
+        // 100, the plain products and divisions about 1 in 1,000.)
         let lengths = [1usize, 5, 13, 64, 320, 1003];
         let vs = nn::VarStore::new(tch::Device::Cpu);
         let init: Vec<Tensor> = lengths
@@ -255,20 +258,10 @@ mod tests {
             adam.step(lr, &mut params, &grads);
             for (i, (v, o)) in vars.iter().zip(&ours).enumerate() {
                 let theirs = values(v);
-                let bad: Vec<(usize, f32, f32, f32)> = theirs
-                    .iter()
-                    .zip(o)
-                    .enumerate()
-                    .filter(|(_, (a, b))| a.to_bits() != b.to_bits())
-                    .map(|(k, (a, b))| (k, *a, *b, grads[i][k]))
-                    .take(8)
-                    .collect();
-                let nbad = theirs
-                    .iter()
-                    .zip(o)
+                let differ = (theirs.iter().zip(o))
                     .filter(|(a, b)| a.to_bits() != b.to_bits())
                     .count();
-                assert!(bad.is_empty(), "step {step}, array {i}: {nbad} differ {bad:?}");
+                assert_eq!(differ, 0, "step {step}, array {i}: values unlike libtorch's");
             }
         }
     }
@@ -297,8 +290,11 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("m.safetensors");
         second.save(&path).unwrap();
-        assert_eq!(MemberMoments::load(&path, &[2, 3]).unwrap(), Some(second));
-        assert_eq!(MemberMoments::load(&path, &[2, 4]).unwrap(), None, "other shapes");
+        assert_eq!(MemberMoments::load(&path, &[2, 3]), Ok(second));
+        let other = MemberMoments::load(&path, &[2, 4]).unwrap_err();
+        assert!(other.contains("not Adam's state"), "{other}");
+        std::fs::write(&path, b"not safetensors").unwrap();
+        assert!(MemberMoments::load(&path, &[2, 3]).is_err(), "a corrupted file");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -77,6 +77,14 @@ pub enum TrainError {
         /// The checkpoint base path of the first run.
         checkpoint: PathBuf,
     },
+    /// A checkpoint's optimiser state cannot be used.
+    #[error("{path}: {message}; remove it to resume with Adam's moments restarted")]
+    OptimiserState {
+        /// The state's file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// The objective stopped being a finite number.
     #[error(
         "training of seed {seed} diverged at epoch {epoch}: the objective is {value}; lower train.learning_rate or train.grad_clip"
@@ -598,15 +606,21 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
         let curves = curves_path(&run.out);
         let mut records = curves::read(&curves).map_err(io_error(&curves))?;
         records.truncate(side.epochs);
-        // A checkpoint written before the optimiser state was kept has none; a state of
-        // another epoch (a crash between the two files) is not used either.
-        let moments = moments_path(&run.out);
-        let moments = match moments.exists() {
-            true => MemberMoments::load(
-                &moments,
-                &StackedNet::from_nets(std::slice::from_ref(&net)).param_lengths(),
-            )?
-            .filter(|m| m.steps == side.epochs as u64),
+        // A checkpoint written before the optimiser state was kept has none (Adam restarts).
+        let path = moments_path(&run.out);
+        let moments = match path.exists() {
+            true => {
+                let lengths = StackedNet::from_nets(std::slice::from_ref(&net)).param_lengths();
+                let state = MemberMoments::load(&path, &lengths);
+                let state = state.and_then(|m| match m.steps == side.epochs as u64 {
+                    true => Ok(m),
+                    false => Err(format!(
+                        "saved after epoch {}, the checkpoint after {}",
+                        m.steps, side.epochs
+                    )),
+                });
+                Some(state.map_err(|message| TrainError::OptimiserState { path, message })?)
+            }
             false => None,
         };
         return Ok(Start {
