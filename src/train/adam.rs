@@ -92,25 +92,16 @@ impl Adam {
     }
 }
 
-/// A member's Adam state as a checkpoint keeps it: the steps taken and, per parameter array,
-/// the member's part of the moments.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MemberMoments {
-    /// Steps taken (the epochs trained).
-    pub steps: u64,
-    /// One entry per parameter array.
-    pub moments: Vec<Moments>,
-}
-
 impl Adam {
-    /// Member `k` of `members`'s part of the state: its share of each array (the arrays hold
-    /// the members one after another, as the stacked parameters do).
-    pub fn member(&self, k: usize, members: usize) -> MemberMoments {
+    /// Member `k` of `members`'s part of the state, as a checkpoint keeps it: its share of
+    /// each array (the arrays hold the members one after another, as the stacked parameters
+    /// do).
+    pub fn member(&self, k: usize, members: usize) -> Adam {
         let part = |v: &[f32]| {
             let n = v.len() / members;
             v[k * n..(k + 1) * n].to_vec()
         };
-        MemberMoments {
+        Adam {
             steps: self.steps,
             moments: self
                 .moments
@@ -125,7 +116,7 @@ impl Adam {
 
     /// The state of `members` together (each of the same steps and shapes), as [`Adam::member`]
     /// splits it.
-    pub fn of_members(members: &[MemberMoments]) -> Self {
+    pub fn of_members(members: &[Adam]) -> Self {
         let join = |i: usize, f: fn(&Moments) -> &Vec<f32>| -> Vec<f32> {
             members
                 .iter()
@@ -142,9 +133,7 @@ impl Adam {
                 .collect(),
         }
     }
-}
 
-impl MemberMoments {
     /// Writes the state to `path` (safetensors) atomically.
     pub fn save(&self, path: &Path) -> Result<(), tch::TchError> {
         let mut named = vec![("steps".to_string(), Tensor::from_slice(&[self.steps as i64]))];
@@ -157,7 +146,7 @@ impl MemberMoments {
         std::fs::rename(&tmp, path).map_err(tch::TchError::Io)
     }
 
-    /// Reads a state that [`MemberMoments::save`] wrote for arrays of `lengths` values; the
+    /// Reads a state that [`Adam::save`] wrote for arrays of `lengths` values; the
     /// message says what is wrong with a file that does not hold one.
     pub fn load(path: &Path, lengths: &[usize]) -> Result<Self, String> {
         let named: std::collections::HashMap<String, Tensor> = Tensor::read_safetensors(path)
@@ -187,7 +176,7 @@ impl MemberMoments {
                 })
             })
             .collect::<Result<Vec<_>, String>>()?;
-        Ok(MemberMoments { steps, moments })
+        Ok(Adam { steps, moments })
     }
 }
 
@@ -290,11 +279,11 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("m.safetensors");
         second.save(&path).unwrap();
-        assert_eq!(MemberMoments::load(&path, &[2, 3]), Ok(second));
-        let other = MemberMoments::load(&path, &[2, 4]).unwrap_err();
+        assert_eq!(Adam::load(&path, &[2, 3]), Ok(second));
+        let other = Adam::load(&path, &[2, 4]).unwrap_err();
         assert!(other.contains("not Adam's state"), "{other}");
         std::fs::write(&path, b"not safetensors").unwrap();
-        assert!(MemberMoments::load(&path, &[2, 3]).is_err(), "a corrupted file");
+        assert!(Adam::load(&path, &[2, 3]).is_err(), "a corrupted file");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -34,7 +34,7 @@ use crate::world::drivers::Driver;
 use crate::world::neighbors::find_neighbors;
 use crate::world::sampler::{Purpose, purpose_seed, sample_scenes, sample_training_scenes};
 use crate::world::state::Scene;
-use adam::{Adam, MemberMoments};
+use adam::Adam;
 use curves::EpochRecord;
 use stacked::{ParamGrads, StackedNet};
 use std::path::{Path, PathBuf};
@@ -574,7 +574,7 @@ struct Start {
     records: Vec<EpochRecord>,
     screening: Option<InitScreening>,
     /// Adam's state at the checkpoint, when it was saved with it.
-    moments: Option<MemberMoments>,
+    moments: Option<Adam>,
 }
 
 fn io_error(path: &Path) -> impl FnOnce(std::io::Error) -> TrainError + '_ {
@@ -608,20 +608,18 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
         records.truncate(side.epochs);
         // A checkpoint written before the optimiser state was kept has none (Adam restarts).
         let path = moments_path(&run.out);
-        let moments = match path.exists() {
-            true => {
-                let lengths = StackedNet::from_nets(std::slice::from_ref(&net)).param_lengths();
-                let state = MemberMoments::load(&path, &lengths);
-                let state = state.and_then(|m| match m.steps == side.epochs as u64 {
-                    true => Ok(m),
-                    false => Err(format!(
-                        "saved after epoch {}, the checkpoint after {}",
-                        m.steps, side.epochs
-                    )),
-                });
-                Some(state.map_err(|message| TrainError::OptimiserState { path, message })?)
-            }
-            false => None,
+        let moments = if path.exists() {
+            let lengths = StackedNet::from_nets(std::slice::from_ref(&net)).param_lengths();
+            let state = Adam::load(&path, &lengths).and_then(|m| match m.steps == side.epochs as u64 {
+                true => Ok(m),
+                false => Err(format!(
+                    "saved after epoch {}, the checkpoint after {}",
+                    m.steps, side.epochs
+                )),
+            });
+            Some(state.map_err(|message| TrainError::OptimiserState { path, message })?)
+        } else {
+            None
         };
         return Ok(Start {
             net,
@@ -795,7 +793,7 @@ fn train_members<'env>(
     let mut stack = Stack::new(mode, &nets, members.iter().map(|(r, _)| r.seed).collect());
     // Resumed runs continue Adam where it stopped when every member kept its state;
     // otherwise the moments restart (as for checkpoints written before they were kept).
-    let moments: Option<Vec<MemberMoments>> = members.iter().map(|(_, s)| s.moments.clone()).collect();
+    let moments: Option<Vec<Adam>> = members.iter().map(|(_, s)| s.moments.clone()).collect();
     if let Some(moments) = moments {
         stack.adam = Adam::of_members(&moments);
     }
