@@ -121,6 +121,23 @@ fn resume_says_when_there_is_no_checkpoint_or_optimiser_state_and_refuses_foreig
         stderr.contains("no optimiser state") && stderr.contains("moments restart"),
         "{stderr}"
     );
+    // A checkpoint whose write was cut short (the one before kept as `.ckpt.prev`, the same
+    // epochs in both sidecars): resumed from the kept one, and said so.
+    checkpoint();
+    for ext in ["json", "safetensors"] {
+        std::fs::copy(
+            dir.join(format!("seed0.{ext}")),
+            dir.join(format!("seed0.ckpt.prev.{ext}")),
+        )
+        .unwrap();
+    }
+    let out = train(&config);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("cut short") && stderr.contains("seed0.ckpt.prev.json"),
+        "{stderr}"
+    );
     // A checkpoint whose optimiser state is corrupted: refused as bad input, naming the file.
     checkpoint();
     let state = dir.join("seed0.ckpt.adam.safetensors");
@@ -440,5 +457,15 @@ fn training_killed_with_sigkill_resumes_from_its_last_checkpoint() {
     assert_eq!(cut.len(), 60, "every epoch in the curves");
     // Nothing up to the checkpoint is lost or redone: those rows are the uninterrupted run's.
     assert_eq!(cut[..saved], whole[..saved]);
-    assert!(!base.join("cut/seed3.ckpt.json").exists());
+    // Wherever the kill fell (even inside a checkpoint's write), the run ends as the
+    // uninterrupted one: the same weights, bit for bit, and the same curves.
+    let weights = |d: &str| std::fs::read(base.join(d).join("seed3.safetensors")).unwrap();
+    assert!(weights("cut") == weights("whole"), "the resumed weights differ");
+    assert_eq!(cut, whole);
+    let left = std::fs::read_dir(base.join("cut")).unwrap();
+    let left: Vec<_> = left.map(|e| e.unwrap().file_name()).collect();
+    assert!(
+        !left.iter().any(|n| n.to_string_lossy().contains(".ckpt")),
+        "{left:?}"
+    );
 }

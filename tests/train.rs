@@ -187,7 +187,7 @@ fn resume_runs_only_the_epochs_after_the_checkpoint() {
 }
 
 #[test]
-fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
+fn a_stop_request_ends_with_a_checkpoint_that_resumes_past_a_cut_write() {
     let config = smoke();
     let dir = out_dir("stop");
     let stop = AtomicBool::new(false);
@@ -210,6 +210,24 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
         dir.join("seed3.ckpt.adam.safetensors").exists(),
         "Adam's state kept"
     );
+    // The run uninterrupted, for reference.
+    let whole = out_dir("stop-whole");
+    let uninterrupted = train(&config, &run(Mode::Mpg, &whole), &NO_STOP, &mut |_| {}).unwrap();
+    let bytes = |d: &std::path::Path| std::fs::read(d.join("seed3.safetensors")).unwrap();
+    // A later checkpoint's write cut short as the writer leaves it: the epoch-3 files kept
+    // under `.ckpt.prev` (hard links), then new optimiser state and weights renamed over the
+    // current ones, the sidecar still epoch 3's. Resuming must start from the kept files.
+    for ext in ["safetensors", "adam.safetensors", "json"] {
+        let name = |kind: &str| dir.join(format!("seed3.ckpt.{kind}{ext}"));
+        std::fs::hard_link(name(""), name("prev.")).unwrap();
+    }
+    let replace = |name: &str, contents: &[u8]| {
+        let tmp = dir.join("tmp");
+        std::fs::write(&tmp, contents).unwrap();
+        std::fs::rename(tmp, dir.join(name)).unwrap();
+    };
+    replace("seed3.ckpt.adam.safetensors", b"a later state");
+    replace("seed3.ckpt.safetensors", &bytes(&whole));
     let resumed = train(
         &config,
         &TrainRun {
@@ -221,15 +239,14 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes() {
     )
     .unwrap();
     assert_eq!(resumed.len(), config.train.epochs);
-    assert!(
-        !dir.join("seed3.ckpt.adam.safetensors").exists(),
-        "removed with the checkpoint"
-    );
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.contains(".ckpt"))
+        .collect();
+    assert!(left.is_empty(), "removed with the checkpoint: {left:?}");
     // Adam continues with its moments, so the run ends as one never stopped: the same
     // weights, bit for bit, and the same curves.
-    let whole = out_dir("stop-whole");
-    let uninterrupted = train(&config, &run(Mode::Mpg, &whole), &NO_STOP, &mut |_| {}).unwrap();
-    let bytes = |d: &std::path::Path| std::fs::read(d.join("seed3.safetensors")).unwrap();
     assert!(
         bytes(&dir) == bytes(&whole),
         "the resumed weights are the uninterrupted run's"

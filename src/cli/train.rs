@@ -85,17 +85,29 @@ pub fn run(args: TrainArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Says which seeds have no checkpoint to resume from (they train from the start).
+/// Says which seeds have no checkpoint to resume from (they train from the start), and which
+/// resume from an older checkpoint or without the optimiser state.
 fn warn_missing_checkpoints(runs: &[TrainRun]) {
+    use mpgdrive::train::checkpoint::{checkpoint_path, latest, moments_path};
     for run in runs {
-        let ckpt = mpgdrive::train::checkpoint_path(&run.out);
-        if !mpgdrive::policy::file::paths(&ckpt).1.exists() {
+        let current = checkpoint_path(&run.out);
+        let Some(ckpt) = latest(&run.out) else {
             eprintln!(
                 "seed {}: no checkpoint {}.json to resume; it trains from the start",
                 run.seed,
+                current.display()
+            );
+            continue;
+        };
+        if ckpt != current {
+            eprintln!(
+                "seed {}: the write of checkpoint {}.json was cut short; it resumes from the one before, {}.json",
+                run.seed,
+                current.display(),
                 ckpt.display()
             );
-        } else if !mpgdrive::train::moments_path(&run.out).exists() {
+        }
+        if !moments_path(&ckpt).exists() {
             eprintln!(
                 "seed {}: checkpoint {}.json has no optimiser state (an older checkpoint); Adam's moments restart",
                 run.seed,

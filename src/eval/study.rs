@@ -107,7 +107,9 @@ pub fn load_policies(
     let mut sidecars: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
-            p.extension().is_some_and(|e| e == "json") && !p.to_string_lossy().ends_with(".ckpt.json")
+            p.extension().is_some_and(|e| e == "json")
+                && p.file_name()
+                    .is_some_and(|n| !n.to_string_lossy().contains(".ckpt."))
         })
         .collect();
     sidecars.sort();

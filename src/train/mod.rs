@@ -13,6 +13,7 @@
 //! failure rates, and the mean squared difference of the probe actions from the previous epoch.
 
 pub mod adam;
+pub mod checkpoint;
 pub mod curves;
 pub mod stacked;
 pub mod workers;
@@ -116,16 +117,6 @@ pub struct TrainRun {
     pub resume: bool,
     /// The command line, recorded in the sidecar.
     pub command: String,
-}
-
-/// The checkpoint base path of a run.
-pub fn checkpoint_path(out: &Path) -> PathBuf {
-    with_suffix(out, ".ckpt")
-}
-
-/// The optimiser state that goes with a run's checkpoint (Adam's steps and moments).
-pub fn moments_path(out: &Path) -> PathBuf {
-    with_suffix(out, ".ckpt.adam.safetensors")
 }
 
 /// The curves CSV path of a run.
@@ -590,8 +581,7 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
     if let Some(dir) = run.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(io_error(dir))?;
     }
-    let ckpt = checkpoint_path(&run.out);
-    if run.resume && file::paths(&ckpt).1.exists() {
+    if let Some(ckpt) = checkpoint::latest(&run.out).filter(|_| run.resume) {
         let (net, side) = file::load(&ckpt, Layout::of(config))?;
         if side.mode != run.mode || side.seed != run.seed || side.config != *config {
             return Err(TrainError::ForeignCheckpoint {
@@ -607,7 +597,7 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
         let mut records = curves::read(&curves).map_err(io_error(&curves))?;
         records.truncate(side.epochs);
         // A checkpoint written before the optimiser state was kept has none (Adam restarts).
-        let path = moments_path(&run.out);
+        let path = checkpoint::moments_path(&ckpt);
         let moments = if path.exists() {
             let lengths = StackedNet::from_nets(std::slice::from_ref(&net)).param_lengths();
             let state = Adam::load(&path, &lengths).and_then(|m| match m.steps == side.epochs as u64 {
@@ -819,25 +809,20 @@ fn train_members<'env>(
         if checkpoint {
             for (k, (run, s)) in members.iter().enumerate() {
                 let net = stack.net.member(k)?;
-                // The state first: the sidecar written last marks the checkpoint complete.
-                stack
-                    .adam
-                    .member(k, members.len())
-                    .save(&moments_path(&run.out))?;
-                save_run(
-                    config,
-                    run,
-                    &checkpoint_path(&run.out),
-                    &net,
-                    &records[k],
-                    &s.screening,
-                )?;
+                checkpoint::write(&run.out, |ckpt| {
+                    // The state first: the sidecar written last marks the checkpoint complete.
+                    stack
+                        .adam
+                        .member(k, members.len())
+                        .save(&checkpoint::moments_path(ckpt))?;
+                    save_run(config, run, ckpt, &net, &records[k], &s.screening)
+                })?;
             }
         }
         if checkpoint && interrupted {
             return Err(TrainError::Interrupted {
                 epoch: epoch + 1,
-                checkpoint: checkpoint_path(&members[0].0.out),
+                checkpoint: checkpoint::checkpoint_path(&members[0].0.out),
             });
         }
     }
@@ -851,10 +836,7 @@ fn train_members<'env>(
             &records,
             &s.screening,
         )?;
-        let ckpt = checkpoint_path(&run.out);
-        for path in [file::paths(&ckpt).0, file::paths(&ckpt).1, moments_path(&run.out)] {
-            let _ = std::fs::remove_file(path); // the finished policy supersedes the checkpoint
-        }
+        checkpoint::remove_all(&run.out);
         outcomes.push(TrainOutcome {
             records,
             screening: s.screening.clone(),
