@@ -29,7 +29,7 @@ pub fn moments_path(ckpt: &Path) -> PathBuf {
     with_suffix(ckpt, ".adam.safetensors")
 }
 
-/// A checkpoint's files in the order they are written: weights, optimiser state, sidecar.
+/// A checkpoint's files: weights, optimiser state and, written last, the sidecar.
 fn files(ckpt: &Path) -> [PathBuf; 3] {
     let (weights, sidecar) = file::paths(ckpt);
     [weights, moments_path(ckpt), sidecar]
@@ -70,8 +70,8 @@ fn remove_kept(ckpt: &Path) -> Result<(), TrainError> {
     files(ckpt).iter().rev().try_for_each(|f| remove(f))
 }
 
-/// Writes a checkpoint of the run at `out` with `save`, which writes the files of the base
-/// path it is given in the order of [`files`] (the sidecar last).
+/// Writes a checkpoint of the run at `out` with `save`, which writes the three files of the
+/// base path it is given, each by a rename and the sidecar last.
 pub fn write(out: &Path, save: impl FnOnce(&Path) -> Result<(), TrainError>) -> Result<(), TrainError> {
     let (current, previous) = (checkpoint_path(out), previous_path(out));
     // When the kept checkpoint is the last complete one, the current files may be a mixture:
