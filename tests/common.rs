@@ -65,6 +65,15 @@ pub fn fresh_dir(name: &str) -> std::path::PathBuf {
     dir
 }
 
+/// The names of the checkpoint files (`*.ckpt*`) left in `dir`.
+pub fn checkpoint_files(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".ckpt"))
+        .collect()
+}
+
 /// The real NGSIM sample of ../shared/data/ngsim, when it is there (a clone elsewhere may not
 /// have it: the tests that need it say so and pass).
 pub fn real_sample() -> Option<std::path::PathBuf> {

@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{fresh_dir, smoke};
+use common::{checkpoint_files, fresh_dir, smoke};
 use mpgdrive::policy::file::{self, PolicyError};
 use mpgdrive::policy::observation::Layout;
 use mpgdrive::policy::{NetSpec, PolicyNet};
@@ -239,11 +239,7 @@ fn a_stop_request_ends_with_a_checkpoint_that_resumes_past_a_cut_write() {
     )
     .unwrap();
     assert_eq!(resumed.len(), config.train.epochs);
-    let left: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .filter(|n| n.contains(".ckpt"))
-        .collect();
+    let left = checkpoint_files(&dir);
     assert!(left.is_empty(), "removed with the checkpoint: {left:?}");
     // Adam continues with its moments, so the run ends as one never stopped: the same
     // weights, bit for bit, and the same curves.
