@@ -95,51 +95,33 @@ fn resume_says_when_there_is_no_checkpoint_or_optimiser_state_and_refuses_foreig
             .output()
             .unwrap()
     };
-    let out = train(&config);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        stderr.contains("no checkpoint") && stderr.contains("trains from the start"),
-        "{stderr}"
-    );
+    let resumes_saying = |words: &[&str]| {
+        let out = train(&config);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{stderr}");
+        assert!(words.iter().all(|w| stderr.contains(w)), "{stderr}");
+    };
+    resumes_saying(&["no checkpoint", "trains from the start"]);
     // A checkpoint of this run without Adam's state (as older versions wrote them): resumed,
     // with a warning that the moments restart.
-    let checkpoint = || {
+    let checkpoint = |name: &str| {
         for ext in ["json", "safetensors"] {
             std::fs::copy(
                 dir.join(format!("seed0.{ext}")),
-                dir.join(format!("seed0.ckpt.{ext}")),
+                dir.join(format!("seed0.{name}.{ext}")),
             )
             .unwrap();
         }
     };
-    checkpoint();
-    let out = train(&config);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    assert!(
-        stderr.contains("no optimiser state") && stderr.contains("moments restart"),
-        "{stderr}"
-    );
+    checkpoint("ckpt");
+    resumes_saying(&["no optimiser state", "moments restart"]);
     // A checkpoint whose write was cut short (the one before kept as `.ckpt.prev`, the same
     // epochs in both sidecars): resumed from the kept one, and said so.
-    checkpoint();
-    for ext in ["json", "safetensors"] {
-        std::fs::copy(
-            dir.join(format!("seed0.{ext}")),
-            dir.join(format!("seed0.ckpt.prev.{ext}")),
-        )
-        .unwrap();
-    }
-    let out = train(&config);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    assert!(
-        stderr.contains("cut short") && stderr.contains("seed0.ckpt.prev.json"),
-        "{stderr}"
-    );
+    checkpoint("ckpt");
+    checkpoint("ckpt.prev");
+    resumes_saying(&["cut short", "seed0.ckpt.prev.json"]);
     // A checkpoint whose optimiser state is corrupted: refused as bad input, naming the file.
-    checkpoint();
+    checkpoint("ckpt");
     let state = dir.join("seed0.ckpt.adam.safetensors");
     std::fs::write(&state, b"not a safetensors file").unwrap();
     let out = train(&config);
