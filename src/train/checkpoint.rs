@@ -3,8 +3,8 @@
 //!
 //! Each file is replaced atomically, but no single rename replaces three files, so a crash
 //! while a checkpoint is written could leave new weights beside the old sidecar. A write
-//! therefore first keeps the checkpoint it replaces under `BASE.ckpt.prev.*` (hard links,
-//! sidecar last), then writes the new files (sidecar last), then removes the kept ones
+//! therefore first keeps a copy of the checkpoint it replaces under `BASE.ckpt.prev.*`
+//! (sidecar last), then writes the new files (sidecar last), then removes the kept ones
 //! (sidecar first). Whenever the process stops, one complete checkpoint remains, and
 //! [`latest`] finds it: the kept one while the new sidecar has not replaced the old.
 
@@ -55,14 +55,27 @@ pub fn latest(out: &Path) -> Option<PathBuf> {
     }
 }
 
-fn remove(path: &Path) -> Result<(), TrainError> {
-    match std::fs::remove_file(path) {
+/// `result` of an operation on `path`, a missing file counting as done.
+fn unless_missing(path: &Path, result: std::io::Result<()>) -> Result<(), TrainError> {
+    match result {
         Err(e) if e.kind() != ErrorKind::NotFound => Err(TrainError::Io {
             path: path.to_path_buf(),
             source: e,
         }),
         _ => Ok(()),
     }
+}
+
+fn remove(path: &Path) -> Result<(), TrainError> {
+    unless_missing(path, std::fs::remove_file(path))
+}
+
+/// Copies `from` to `to` by a rename (a checkpoint from before the optimiser state was kept
+/// has none to copy).
+fn keep(from: &Path, to: &Path) -> Result<(), TrainError> {
+    let tmp = crate::atomic::temporary(to);
+    let copied = std::fs::copy(from, &tmp).and_then(|_| std::fs::rename(&tmp, to));
+    unless_missing(to, copied)
 }
 
 /// Removes the checkpoint kept at `ckpt`, its sidecar first so that it never looks complete.
@@ -79,12 +92,7 @@ pub fn write(out: &Path, save: impl FnOnce(&Path) -> Result<(), TrainError>) -> 
     if latest(out).as_ref() == Some(&current) {
         remove_kept(&previous)?;
         for (from, to) in files(&current).iter().zip(files(&previous)) {
-            match std::fs::hard_link(from, &to) {
-                Err(e) if e.kind() != ErrorKind::NotFound => {
-                    return Err(TrainError::Io { path: to, source: e });
-                }
-                _ => {}
-            }
+            keep(from, &to)?;
         }
     }
     save(&current)?;
@@ -110,7 +118,7 @@ mod tests {
     }
 
     /// A checkpoint of `epochs` at `ckpt` whose weights and state hold `tag`, each file
-    /// replaced by a rename as the trainer does (a plain write would write through a link).
+    /// replaced by a rename as the trainer does.
     fn put(ckpt: &Path, epochs: u64, tag: &str) {
         let [weights, state, sidecar] = files(ckpt);
         crate::atomic::write(&weights, tag).unwrap();
@@ -135,7 +143,7 @@ mod tests {
         assert_eq!(latest(&out), Some(current.clone()));
         // The next write cut after the old files were kept and the new weights written.
         for (from, to) in files(&current).iter().zip(files(&previous)) {
-            std::fs::hard_link(from, to).unwrap();
+            std::fs::copy(from, to).unwrap();
         }
         crate::atomic::write(&files(&current)[0], "w20").unwrap();
         assert_eq!(latest(&out), Some(previous.clone()));
@@ -170,10 +178,13 @@ mod tests {
         .unwrap();
         assert_eq!(latest(&out), Some(current.clone()));
         assert!(files(&previous).iter().all(|f| !f.exists()), "kept files removed");
-        // An uncut write keeps the current checkpoint while it writes the next.
+        // An uncut write keeps the current checkpoint while it writes the next, even one
+        // without an optimiser state (written before it was kept).
+        std::fs::remove_file(&files(&current)[1]).unwrap();
         write(&out, |ckpt| {
             assert_eq!(latest(&out), Some(previous.clone()), "mid-write");
             assert_eq!(read(&files(&previous)[0]), "new");
+            assert!(!files(&previous)[1].exists());
             put(ckpt, 30, "newer");
             Ok(())
         })
