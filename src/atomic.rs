@@ -25,3 +25,10 @@ pub fn write(path: &Path, contents: impl AsRef<[u8]>) -> std::io::Result<()> {
     std::fs::write(&tmp, contents)?;
     std::fs::rename(&tmp, path)
 }
+
+/// Copies `from` to `to` atomically.
+pub fn copy(from: &Path, to: &Path) -> std::io::Result<()> {
+    let tmp = temporary(to);
+    std::fs::copy(from, &tmp)?;
+    std::fs::rename(&tmp, to)
+}

@@ -70,14 +70,6 @@ fn remove(path: &Path) -> Result<(), TrainError> {
     unless_missing(path, std::fs::remove_file(path))
 }
 
-/// Copies `from` to `to` by a rename (a checkpoint from before the optimiser state was kept
-/// has none to copy).
-fn keep(from: &Path, to: &Path) -> Result<(), TrainError> {
-    let tmp = crate::atomic::temporary(to);
-    let copied = std::fs::copy(from, &tmp).and_then(|_| std::fs::rename(&tmp, to));
-    unless_missing(to, copied)
-}
-
 /// Removes the checkpoint kept at `ckpt`, its sidecar first so that it never looks complete.
 fn remove_kept(ckpt: &Path) -> Result<(), TrainError> {
     files(ckpt).iter().rev().try_for_each(|f| remove(f))
@@ -91,8 +83,9 @@ pub fn write(out: &Path, save: impl FnOnce(&Path) -> Result<(), TrainError>) -> 
     // keep it as it is.
     if latest(out).as_ref() == Some(&current) {
         remove_kept(&previous)?;
+        // A checkpoint from before the optimiser state was kept has none to copy.
         for (from, to) in files(&current).iter().zip(files(&previous)) {
-            keep(from, &to)?;
+            unless_missing(&to, crate::atomic::copy(from, &to))?;
         }
     }
     save(&current)?;
