@@ -19,16 +19,84 @@ pub fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// Writes `path` atomically with a writer of its own: `write` fills the temporary file it is
+/// given, which is then renamed to `path` (`renamed` turns a failed rename into `E`). When
+/// either fails, the temporary file is removed, so a failed write leaves no file behind.
+pub fn write_with<E>(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), E>,
+    renamed: impl FnOnce(std::io::Error) -> E,
+) -> Result<(), E> {
+    let tmp = temporary(path);
+    let done = write(&tmp).and_then(|()| std::fs::rename(&tmp, path).map_err(renamed));
+    if done.is_err() {
+        // The error to report is the write's; a temporary file that was never made is fine.
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done
+}
+
 /// Writes `contents` to `path` atomically.
 pub fn write(path: &Path, contents: impl AsRef<[u8]>) -> std::io::Result<()> {
-    let tmp = temporary(path);
-    std::fs::write(&tmp, contents)?;
-    std::fs::rename(&tmp, path)
+    write_with(path, |tmp| std::fs::write(tmp, contents), |e| e)
 }
 
 /// Copies `from` to `to` atomically.
 pub fn copy(from: &Path, to: &Path) -> std::io::Result<()> {
-    let tmp = temporary(to);
-    std::fs::copy(from, &tmp)?;
-    std::fs::rename(&tmp, to)
+    write_with(to, |tmp| std::fs::copy(from, tmp).map(drop), |e| e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fresh(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("mpgdrive-atomic-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+
+    #[test]
+    fn a_failed_write_or_rename_leaves_the_old_file_and_no_temporary_one() {
+        let dir = fresh("fail");
+        let path = dir.join("out.csv");
+        write(&path, "old").unwrap();
+        // The writer fails after it wrote half of its file.
+        let failed = write_with(
+            &path,
+            |tmp| {
+                std::fs::write(tmp, "ha").unwrap();
+                Err("disk full")
+            },
+            |_| "rename",
+        );
+        assert_eq!(failed, Err("disk full"));
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        assert_eq!(names(&dir), ["out.csv"]);
+        // The rename fails: the target is a directory that holds a file.
+        let blocked = dir.join("taken");
+        std::fs::create_dir_all(blocked.join("inside")).unwrap();
+        assert!(write(&blocked, "new").is_err());
+        assert!(copy(&path, &blocked).is_err());
+        assert_eq!(names(&dir), ["out.csv", "taken"]);
+        // A copy of a missing file fails before it makes anything.
+        assert!(copy(&dir.join("missing"), &dir.join("copy")).is_err());
+        assert_eq!(names(&dir), ["out.csv", "taken"]);
+        // Both succeed under the real names only.
+        write(&path, "new").unwrap();
+        copy(&path, &dir.join("copy")).unwrap();
+        assert_eq!(std::fs::read_to_string(dir.join("copy")).unwrap(), "new");
+        assert_eq!(names(&dir), ["copy", "out.csv", "taken"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

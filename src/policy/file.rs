@@ -187,13 +187,14 @@ pub fn save(base: &Path, net: &PolicyNet, sidecar: &Sidecar) -> Result<(), Polic
         std::fs::create_dir_all(dir).map_err(io(dir))?;
     }
     // tch chooses the format from the extension, which the temporary name keeps.
-    let weights_tmp = crate::atomic::temporary(&weights);
-    net.vs.save(&weights_tmp).map_err(|e| PolicyError::Weights {
-        path: weights.clone(),
-        message: e.to_string(),
-    })?;
+    let write_weights = |tmp: &Path| {
+        net.vs.save(tmp).map_err(|e| PolicyError::Weights {
+            path: weights.clone(),
+            message: e.to_string(),
+        })
+    };
+    crate::atomic::write_with(&weights, write_weights, io(&weights))?;
     let text = serde_json::to_string_pretty(sidecar).expect("a sidecar serialises");
-    std::fs::rename(&weights_tmp, &weights).map_err(io(&weights))?;
     crate::atomic::write(&json, text).map_err(io(&json))?;
     Ok(())
 }

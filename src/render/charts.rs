@@ -138,16 +138,15 @@ pub fn panels_png(path: &Path, size: (u32, u32), panels: &[(Panel, Vec<Series>)]
         )));
     }
     register_font();
-    let tmp = atomic::temporary(path);
     let err = draw_error(path);
-    {
-        let root = BitMapBackend::new(&tmp, size).into_drawing_area();
+    let draw = |tmp: &Path| {
+        let root = BitMapBackend::new(tmp, size).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
         let areas = root.split_evenly((panels.len(), 1));
         for (area, (panel, series)) in areas.iter().zip(panels) {
             draw_panel(area, panel, series).map_err(|e| err(&e))?;
         }
-        root.present().map_err(|e| err(&e))?;
-    }
-    std::fs::rename(&tmp, path).map_err(|e| err(&e))
+        root.present().map_err(|e| err(&e))
+    };
+    atomic::write_with(path, draw, |e| err(&e))
 }

@@ -242,14 +242,13 @@ pub fn frame_png(
     title: &str,
 ) -> Result<(), RenderError> {
     register_font();
-    let tmp = atomic::temporary(path);
     let err = draw_error(path);
-    {
-        let area = BitMapBackend::new(&tmp, layout.size).into_drawing_area();
+    let draw = |tmp: &Path| {
+        let area = BitMapBackend::new(tmp, layout.size).into_drawing_area();
         draw_frame(&area, layout, scene, step, title).map_err(|e| err(&e))?;
-        area.present().map_err(|e| err(&e))?;
-    }
-    std::fs::rename(&tmp, path).map_err(|e| err(&e))
+        area.present().map_err(|e| err(&e))
+    };
+    atomic::write_with(path, draw, |e| err(&e))
 }
 
 /// Draws every `every`-th scene as an animated GIF (`delay_ms` per frame).
@@ -265,18 +264,18 @@ pub fn episode_gif(
         return Err(RenderError::Empty(format!("{}: no frames", path.display())));
     }
     register_font();
-    let tmp = atomic::temporary(path);
     let err = draw_error(path);
-    {
-        let area = BitMapBackend::gif(&tmp, layout.size, delay_ms)
+    let draw = |tmp: &Path| {
+        let area = BitMapBackend::gif(tmp, layout.size, delay_ms)
             .map_err(|e| err(&e))?
             .into_drawing_area();
         for (k, scene) in scenes.iter().enumerate().step_by(every.max(1)) {
             draw_frame(&area, layout, scene, k, title).map_err(|e| err(&e))?;
             area.present().map_err(|e| err(&e))?;
         }
-    }
-    std::fs::rename(&tmp, path).map_err(|e| err(&e))
+        Ok(())
+    };
+    atomic::write_with(path, draw, |e| err(&e))
 }
 
 /// The paper's three key moments of an episode whose ego merged at step `merged_at`: the

@@ -506,10 +506,9 @@ pub fn timespace_png(
     marked: &str,
 ) -> Result<(), RenderError> {
     register_font();
-    let tmp = atomic::temporary(path);
     let err = draw_error(path);
-    {
-        let root = BitMapBackend::new(&tmp, layout.size).into_drawing_area();
+    let draw = |tmp: &Path| {
+        let root = BitMapBackend::new(tmp, layout.size).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
         text(&root, title, (LEFT, 8), 18, Pos::new(HPos::Left, VPos::Top)).map_err(|e| err(&e))?;
         legend(&root, marked).map_err(|e| err(&e))?;
@@ -521,7 +520,7 @@ pub fn timespace_png(
             tracks(&root, layout, diagram, road).map_err(|e| err(&e))?;
         }
         colour_bar(&root, layout).map_err(|e| err(&e))?;
-        root.present().map_err(|e| err(&e))?;
-    }
-    std::fs::rename(&tmp, path).map_err(|e| err(&e))
+        root.present().map_err(|e| err(&e))
+    };
+    atomic::write_with(path, draw, |e| err(&e))
 }

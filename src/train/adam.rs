@@ -141,9 +141,11 @@ impl Adam {
             named.push((format!("{i}.mean"), Tensor::from_slice(&m.mean)));
             named.push((format!("{i}.square"), Tensor::from_slice(&m.square)));
         }
-        let tmp = crate::atomic::temporary(path);
-        Tensor::write_safetensors(&named, &tmp)?;
-        std::fs::rename(&tmp, path).map_err(tch::TchError::Io)
+        crate::atomic::write_with(
+            path,
+            |tmp| Tensor::write_safetensors(&named, tmp),
+            tch::TchError::Io,
+        )
     }
 
     /// Reads a state that [`Adam::save`] wrote for arrays of `lengths` values; the
