@@ -46,16 +46,18 @@ pub fn copy(from: &Path, to: &Path) -> std::io::Result<()> {
     write_with(to, |tmp| std::fs::copy(from, tmp).map(drop), |e| e)
 }
 
+/// An empty directory for a unit test's files, named after `name` and the process.
+#[cfg(test)]
+pub(crate) fn test_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("mpgdrive-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn fresh(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("mpgdrive-atomic-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
 
     fn names(dir: &Path) -> Vec<String> {
         let mut names: Vec<String> = std::fs::read_dir(dir)
@@ -68,7 +70,7 @@ mod tests {
 
     #[test]
     fn a_failed_write_or_rename_leaves_the_old_file_and_no_temporary_one() {
-        let dir = fresh("fail");
+        let dir = test_dir("atomic");
         let path = dir.join("out.csv");
         write(&path, "old").unwrap();
         // The writer fails after it wrote half of its file.

@@ -277,8 +277,7 @@ mod tests {
         assert_eq!(second.moments[0].mean, vec![3.0, 4.0]);
         assert_eq!(second.moments[1].mean, vec![3.0, 4.0, 5.0]);
         assert_eq!(Adam::of_members(&[adam.member(0, 2), second.clone()]), adam);
-        let dir = std::env::temp_dir().join(format!("mpgdrive-adam-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = crate::atomic::test_dir("adam");
         let path = dir.join("m.safetensors");
         second.save(&path).unwrap();
         assert_eq!(Adam::load(&path, &[2, 3]), Ok(second));

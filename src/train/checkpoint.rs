@@ -104,10 +104,7 @@ mod tests {
     use super::*;
 
     fn dir(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("mpgdrive-ckpt-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+        crate::atomic::test_dir(&format!("ckpt-{name}"))
     }
 
     /// A checkpoint of `epochs` at `ckpt` whose weights and state hold `tag`, each file
