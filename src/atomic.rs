@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 /// The temporary name used while writing `path`: a hidden file in the same directory whose
 /// name ends like the target's, so tools that look at the extension still recognise it.
-pub fn temporary(path: &Path) -> PathBuf {
+fn temporary(path: &Path) -> PathBuf {
     let mut name = std::ffi::OsString::from(format!(".{}.tmp.", std::process::id()));
     name.push(path.file_name().unwrap_or_default());
     path.with_file_name(name)
