@@ -219,6 +219,9 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         absolute(ssm),
         "--tripinfo-output.write-unfinished".into(),
         "true".into(),
+        // Collisions on junction lanes count too: a junction merge enters the target lane there.
+        "--collision.check-junctions".into(),
+        "true".into(),
         // The conflict definition of the metrics, whatever the configuration sets.
         "--device.ssm.measures".into(),
         "TTC,DRAC".into(),

@@ -4,6 +4,7 @@
 //! exist. SUMO itself would find most of this only after starting (and writing its outputs),
 //! and a conflict point beyond the network would run to the end with no ego.
 
+use crate::sumo::positions::MergeForm;
 use crate::sumo::{LanePositions, MergeGeometry};
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -142,7 +143,8 @@ pub(crate) fn with_network<T>(
 
 /// Checks `geometry` against the network and returns where its lanes lie along the road:
 /// its lanes exist and each leads to the next one listed, the last ramp lane is an
-/// acceleration lane beside a target lane, and the conflict point lies on it.
+/// acceleration lane beside a target lane or leads through a junction into one, and the
+/// conflict point lies on it.
 pub fn check_geometry(
     geometry: &MergeGeometry,
     geometry_path: &Path,
@@ -166,10 +168,20 @@ pub fn check_geometry(
         let accel = geometry.ramp_lanes.last().expect("validated: not empty");
         let (lo, hi) = positions.span(accel).expect("placed");
         let x_c = geometry.conflict_point;
+        let what = match positions.form() {
+            MergeForm::AccelerationLane => "the acceleration lane",
+            MergeForm::Junction => "the last ramp lane",
+        };
         if !(lo <= x_c && x_c <= hi) {
             return Err(in_net(format!(
-                "conflict_point {x_c} m is not on the acceleration lane `{accel}` (its positions run \
-                 from {lo:.1} to {hi:.1} m along the lanes)"
+                "conflict_point {x_c} m is not on {what} `{accel}` (its positions run from {lo:.1} \
+                 to {hi:.1} m along the lanes)"
+            )));
+        }
+        if positions.form() == MergeForm::Junction && geometry.merge_from.is_some() {
+            return Err(in_net(format!(
+                "merge_from is for acceleration lanes: `{accel}` leads through a junction into the \
+                 target lane, where a ramp vehicle enters from the stop line (remove merge_from)"
             )));
         }
         Ok(positions)

@@ -1,44 +1,60 @@
 //! `mpgdrive net inspect`: finds the merges of a SUMO network and proposes a `merge.toml`.
 //!
-//! A merge is a lane that ends (no connection leaves it) beside a lane of the same edge that
-//! goes on: the acceleration lane, and the target lane to its left. The ramp lanes are the
-//! acceleration lane and the lanes leading into it, followed back through the connections; the
-//! target lanes are the target lane and the lanes it continues from and into. Positions are
-//! along the lanes ([`LanePositions`]), from 0 at the start of the first target lane.
+//! A merge is either
+//! - an **acceleration lane**: a lane that ends (no connection leaves it) beside a lane of the
+//!   same edge that goes on, the target lane (this covers a lane drop whose right lane ends);
+//! - a **junction merge**: a lane whose connections all lead into one edge, the first (lowest
+//!   index) into a lane that another incoming lane also leads into, and which yields to that
+//!   lane there (its link is minor where the other's is major; with equal links, a zipper or a
+//!   lane drop into one lane, the lane of the lower-priority edge, then of the edge with fewer
+//!   lanes, then the right one). That is the paper's forced merge: the ramp lane ends at the
+//!   conflict point.
+//!
+//! The ramp lanes are the last ramp lane and the lanes leading into it, followed back through
+//! the connections; the target lanes are the target lane and the lanes it continues from and
+//! into. Positions are along the lanes ([`LanePositions`]), from 0 at the start of the first
+//! target lane.
 
 use crate::sumo::LanePositions;
 use crate::sumo::inputs::{InputError, with_network};
-use crate::sumo::positions::connections_of;
+use crate::sumo::positions::{Link, MergeForm, connections_of};
 use std::collections::BTreeMap;
 use std::path::Path;
 
 /// One merge found in a network.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Merge {
-    /// The ramp lanes, upstream to downstream, the acceleration lane last.
+    /// How the ramp joins the target lane.
+    pub form: MergeForm,
+    /// The ramp lanes, upstream to downstream, the acceleration lane (or the lane that ends
+    /// at the junction) last.
     pub ramp_lanes: Vec<String>,
     /// The target lanes, upstream to downstream.
     pub target_lanes: Vec<String>,
-    /// The target lane beside the acceleration lane.
+    /// The target lane the ramp joins: beside the acceleration lane, or the one a junction
+    /// merge leads into.
     pub target_lane: String,
-    /// Position where the acceleration lane begins (m).
+    /// Position where the last ramp lane begins (m).
     pub lane_start: f64,
-    /// Position where the acceleration lane ends (m).
+    /// Position where the last ramp lane ends (m): the stop line of a junction merge.
     pub lane_end: f64,
     /// Position where the first ramp lane begins (m).
     pub ramp_start: f64,
 }
 
-/// A lane: its edge and index.
+/// A lane: its edge, index, and the edge's priority and number of lanes.
 struct Lane {
     edge: String,
     index: u32,
+    priority: i64,
+    lanes: usize,
 }
 
 /// At most this many lanes are followed in each direction.
 const CHAIN: usize = 12;
 
-/// The merges of the network in `net`, in the order of their acceleration lanes' ids.
+/// The merges of the network in `net`: acceleration lanes in the order of their ids, then
+/// junction merges in the order of their ramp lanes' ids.
 pub fn find_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
     with_network(net, merges_of)
 }
@@ -49,7 +65,12 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         let Some(id) = edge.attribute("id").filter(|id| !id.starts_with(':')) else {
             continue;
         };
-        for lane in edge.children().filter(|n| n.has_tag_name("lane")) {
+        let priority = edge
+            .attribute("priority")
+            .and_then(|p| p.parse().ok())
+            .unwrap_or(0);
+        let edge_lanes: Vec<_> = edge.children().filter(|n| n.has_tag_name("lane")).collect();
+        for lane in &edge_lanes {
             let (Some(lane_id), Some(index)) = (
                 lane.attribute("id"),
                 lane.attribute("index").and_then(|i| i.parse().ok()),
@@ -61,25 +82,25 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
                 Lane {
                     edge: id.to_owned(),
                     index,
+                    priority,
+                    lanes: edge_lanes.len(),
                 },
             );
         }
     }
-    let lane_id = |edge: &str, index: &str| format!("{edge}_{index}");
-    // Connections between lanes of normal edges: (from lane, to lane), in file order.
-    let links: Vec<(String, String)> = connections_of(doc)
+    // Connections between lanes of normal edges, in file order.
+    let links: Vec<Link> = connections_of(doc)
         .into_iter()
         .filter(|l| lanes.contains_key(&l.from) && lanes.contains_key(&l.to))
-        .map(|l| (l.from, l.to))
         .collect();
-    let continues = |lane: &str| links.iter().any(|(f, _)| f == lane);
+    let continues = |lane: &str| links.iter().any(|l| l.from == lane);
     let chain = |first: &str, forward: bool| {
         let mut out = vec![first.to_owned()];
         while out.len() < CHAIN {
             let last = out.last().expect("not empty");
-            let next = links.iter().find_map(|(f, t)| match forward {
-                true if f == last => Some(t.clone()),
-                false if t == last => Some(f.clone()),
+            let next = links.iter().find_map(|l| match forward {
+                true if l.from == *last => Some(l.to.clone()),
+                false if l.to == *last => Some(l.from.clone()),
                 _ => None,
             });
             match next {
@@ -93,32 +114,78 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         out
     };
     let mut merges = Vec::new();
+    // Acceleration lanes: a lane that ends beside a lane of its edge that goes on.
     for (id, lane) in &lanes {
-        let left = lane_id(&lane.edge, &(lane.index + 1).to_string());
+        let left = format!("{}_{}", lane.edge, lane.index + 1);
         if continues(id) || !lanes.contains_key(&left) || !continues(&left) {
             continue;
         }
-        let ramp_lanes = chain(id, false);
         let mut target_lanes = chain(&left, false);
         target_lanes.extend(chain(&left, true).into_iter().skip(1));
-        let Ok(positions) = LanePositions::of_network(doc, &ramp_lanes, &target_lanes, 0.0) else {
+        merges.extend(placed(doc, chain(id, false), target_lanes, &left));
+    }
+    // Junction merges: a lane whose links all lead into one edge, the first of them into a lane
+    // that another incoming lane also leads into, and which yields to it there.
+    for id in lanes.keys() {
+        let out: Vec<&Link> = links.iter().filter(|l| l.from == *id).collect();
+        let Some(first) = out.iter().min_by_key(|l| lanes[&l.to].index) else {
             continue;
         };
-        let (Some((lane_start, lane_end)), Some((ramp_start, _))) =
-            (positions.span(id), positions.span(&ramp_lanes[0]))
-        else {
+        if out.iter().any(|l| lanes[&l.to].edge != lanes[&first.to].edge) {
+            continue; // an intersection's approach: it turns onto several roads
+        }
+        let target = &first.to;
+        let rank = |l: &Link| {
+            let of = &lanes[&l.from];
+            (right_of_way(&l.state), of.priority, of.lanes, of.index)
+        };
+        let others: Vec<&Link> = links
+            .iter()
+            .filter(|l| l.to == *target && l.from != *id)
+            .collect();
+        let Some(feeder) = others.iter().max_by_key(|l| rank(l)) else {
             continue;
         };
-        merges.push(Merge {
-            ramp_lanes,
-            target_lanes,
-            target_lane: left,
-            lane_start,
-            lane_end,
-            ramp_start,
-        });
+        if rank(first) >= rank(feeder) {
+            continue; // it does not yield there: the feeder is the ramp, if either is
+        }
+        let mut target_lanes = chain(&feeder.from, false);
+        target_lanes.extend(chain(target, true));
+        merges.extend(placed(doc, chain(id, false), target_lanes, target));
     }
     merges
+}
+
+/// How much right of way a link state gives: major, then zipper or equal, then the rest (minor,
+/// stop, yield).
+fn right_of_way(state: &str) -> u8 {
+    match state {
+        "M" | "O" => 2,
+        "Z" | "=" => 1,
+        _ => 0,
+    }
+}
+
+/// The merge of `ramp_lanes` into `target`, one of `target_lanes`, placed along the lanes
+/// (none when they do not fit together).
+fn placed(
+    doc: &roxmltree::Document,
+    ramp_lanes: Vec<String>,
+    target_lanes: Vec<String>,
+    target: &str,
+) -> Option<Merge> {
+    let positions = LanePositions::of_network(doc, &ramp_lanes, &target_lanes, 0.0).ok()?;
+    let (lane_start, lane_end) = positions.span(ramp_lanes.last()?)?;
+    let (ramp_start, _) = positions.span(&ramp_lanes[0])?;
+    Some(Merge {
+        form: positions.form(),
+        ramp_lanes,
+        target_lane: target.to_owned(),
+        target_lanes,
+        lane_start,
+        lane_end,
+        ramp_start,
+    })
 }
 
 fn quoted(list: &[String]) -> String {
@@ -126,7 +193,7 @@ fn quoted(list: &[String]) -> String {
     format!("[{}]", items.join(", "))
 }
 
-/// Where the conflict point goes: 20 m before the end of the acceleration lane (a vehicle's
+/// Where the conflict point goes on an acceleration lane: 20 m before its end (a vehicle's
 /// centre never reaches the very end: SUMO stops it there), within the lane.
 pub const BEFORE_END: f64 = 20.0;
 
@@ -134,40 +201,67 @@ pub const BEFORE_END: f64 = 20.0;
 /// from this far into it (m).
 pub const LANE_MARGIN: f64 = 10.0;
 
-/// A commented `merge.toml` for `merge` of the network `net`: the conflict point
-/// [`BEFORE_END`] before the end of the acceleration lane, egos picked up 120 m before it, or
+/// A commented `merge.toml` for `merge` of the network `net`. On an acceleration lane: the
+/// conflict point [`BEFORE_END`] before its end, egos picked up 120 m before it, or
 /// [`LANE_MARGIN`] before the acceleration lane if that is earlier, and merging from
-/// [`LANE_MARGIN`] into it.
+/// [`LANE_MARGIN`] into it. At a junction: the conflict point at the stop line (the end of the
+/// ramp lane, rounded down to 0.1 m so that it stays on the lane), egos picked up 120 m before
+/// it, no `merge_from`.
 pub fn proposal(merge: &Merge, net: &Path) -> String {
-    let x_c = (merge.lane_end - BEFORE_END).max(0.5 * (merge.lane_start + merge.lane_end));
+    let ramp = quoted(&merge.ramp_lanes);
+    let target = quoted(&merge.target_lanes);
+    let last = merge.ramp_lanes.last().map_or("", String::as_str);
+    let (x_c, where_, merge_from) = match merge.form {
+        MergeForm::AccelerationLane => {
+            let x_c = (merge.lane_end - BEFORE_END).max(0.5 * (merge.lane_start + merge.lane_end));
+            let from = (merge.lane_start + LANE_MARGIN).min(x_c);
+            (
+                x_c,
+                format!(
+                    "20 m before the end of the acceleration lane `{last}` (at {:.1}):\n\
+                     #                                  ramp vehicles join the target lane here; SUMO stops them at the end",
+                    merge.lane_end
+                ),
+                format!(
+                    "merge_from = {from:.1}              # egos change to the target lane at the first safe gap from here on\n\
+                     #                                  (10 m into the acceleration lane), as SUMO's drivers do; at x_c at the latest\n"
+                ),
+            )
+        }
+        MergeForm::Junction => (
+            (merge.lane_end * 10.0).floor() / 10.0,
+            format!(
+                "the stop line: `{last}` ends at the junction and leads into\n\
+                 #                                  `{}`; ramp vehicles wait here for a safe gap and enter by driving on",
+                merge.target_lane
+            ),
+            String::new(),
+        ),
+    };
     // Before the acceleration lane: SUMO's drivers change lanes as soon as they reach it, and
     // a ramp vehicle that changed before pick-up is never an ego.
-    let control_from = (x_c - 120.0)
-        .min(merge.lane_start - LANE_MARGIN)
-        .max(merge.ramp_start);
-    let merge_from = (merge.lane_start + LANE_MARGIN).min(x_c);
+    let mut control_from = (x_c - 120.0).max(merge.ramp_start);
+    if merge.form == MergeForm::AccelerationLane {
+        control_from = control_from
+            .min(merge.lane_start - LANE_MARGIN)
+            .max(merge.ramp_start);
+    }
     format!(
         "# merge.toml proposed by `mpgdrive net inspect {net}`: check it, then save it next to the\n\
          # .sumocfg (cosim and batch read it from there, or from --merge). Units: m. Positions are\n\
          # distances driven along the lanes, from 0 at the start of the first target lane; a ramp\n\
          # vehicle's position is the target-lane position it reaches by driving on.\n\
          target_start = 0.0               # the position of the start of target_lanes' first lane\n\
-         conflict_point = {x_c:.1}          # 20 m before the end of the acceleration lane `{accel}` (at {end:.1}):\n\
-         #                                  ramp vehicles join the target lane here; SUMO stops them at the end\n\
+         conflict_point = {x_c:.1}          # {where_}\n\
          control_from = {control_from:.1}            # egos are picked up here: 120 m before x_c (training starts them 40-120 m\n\
-         #                                  before), or on the ramp 10 m before the acceleration lane if that is\n\
-         #                                  earlier (SUMO's drivers change lanes as soon as they reach it)\n\
+         #                                  before), or 10 m before an acceleration lane if that is earlier, and not\n\
+         #                                  before the ramp begins\n\
          release_after = 50.0             # a merged ego is released 50 m past x_c\n\
-         merge_from = {merge_from:.1}              # egos change to the target lane at the first safe gap from here on\n\
-         #                                  (10 m into the acceleration lane), as SUMO's drivers do; at x_c at the latest\n\
-         ramp_lanes = {ramp}   # in driving order, the acceleration lane last\n\
+         {merge_from}\
+         ramp_lanes = {ramp}   # in driving order, the lane that ends last\n\
          target_lanes = {target}   # in driving order\n\
          controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
          players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n",
         net = net.display(),
-        accel = merge.ramp_lanes.last().map_or("", String::as_str),
-        end = merge.lane_end,
-        ramp = quoted(&merge.ramp_lanes),
-        target = quoted(&merge.target_lanes),
     )
 }

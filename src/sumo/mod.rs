@@ -4,6 +4,7 @@
 //!
 //! The FFI parts need the `sumo` cargo feature (on by default).
 
+pub mod build;
 #[cfg(feature = "sumo")]
 pub mod controller;
 #[cfg(feature = "sumo")]

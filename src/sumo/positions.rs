@@ -9,6 +9,14 @@
 //! laid back from its start, so a ramp vehicle's distance to the conflict point is the
 //! distance it has to drive. A vehicle's position is its lane's start plus its lane position
 //! (SUMO's `getLanePosition`, which runs along the lane's `length`).
+//!
+//! A **junction merge** ([`MergeForm::Junction`]) has no acceleration lane: the last ramp lane
+//! ends at a junction and leads through it (a minor or zipper link) into one of the target
+//! lanes, which other incoming lanes also lead into (the paper's forced merge; also a lane
+//! drop whose two lanes both continue into one). The ramp's junction lanes (the *entry
+//! lanes*) are laid back from the start of the target lane they lead into, and the ramp lanes
+//! back from them, so the stop line at the end of the ramp lies where a vehicle driving on
+//! reaches the target lane's junction lane of the same length.
 
 use std::collections::HashMap;
 
@@ -25,9 +33,26 @@ struct NetLane {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LanePositions {
     lanes: HashMap<String, Placed>,
+    /// How the ramp joins the target lane.
+    form: MergeForm,
+    /// A junction merge's entry lanes: the junction lanes that leave the last ramp lane.
+    entry: Vec<String>,
     /// Speed limit of the target lane beside the acceleration lane (m/s), the road's speed
     /// where egos merge.
     road_speed: Option<f64>,
+}
+
+/// How the ramp joins the target lane.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MergeForm {
+    /// The last ramp lane ends beside a target lane of the same edge, which goes on: a ramp
+    /// vehicle changes lanes along it (an acceleration lane, or a lane drop whose lane ends).
+    #[default]
+    AccelerationLane,
+    /// The last ramp lane ends at a junction and leads through it into a target lane: a ramp
+    /// vehicle enters by driving on, from the stop line at the end of its lane.
+    Junction,
 }
 
 /// One lane on the road.
@@ -62,15 +87,28 @@ impl LanePositions {
         let Some(accel) = ramp_lanes.last() else {
             return Err("ramp_lanes is empty".into());
         };
+        // A junction merge when the last ramp lane leads into a target lane (first among the
+        // forms: in a lane drop the lane beside it may be a target lane too), else an
+        // acceleration lane beside one.
+        let joins = target_lanes
+            .iter()
+            .enumerate()
+            .skip(1)
+            .find_map(|(k, t)| Some((k, via_lanes(&links, accel, t, "ramp_lanes").ok()?)));
         let beside = crate::sumo::geometry::split_lane_id(accel)
             .map(|(edge, index)| format!("{edge}_{}", index + 1))
-            .filter(|l| target_lanes.contains(l))
-            .ok_or_else(|| {
-                format!(
-                    "the last ramp lane `{accel}` must be an acceleration lane: the lane to its left on \
-                     the same edge must be one of target_lanes"
-                )
-            })?;
+            .filter(|l| target_lanes.contains(l));
+        let (form, meets) = match (&joins, beside) {
+            (Some((k, _)), _) => (MergeForm::Junction, target_lanes[*k].clone()),
+            (None, Some(beside)) => (MergeForm::AccelerationLane, beside),
+            (None, None) => {
+                return Err(format!(
+                    "the last ramp lane `{accel}` must be an acceleration lane (the lane to its left \
+                     on the same edge one of target_lanes) or lead through a junction into one of \
+                     target_lanes"
+                ));
+            }
+        };
         let mut lanes = HashMap::new();
         let mut place = |lane: &str, start: f64, scale: f64| -> Result<f64, String> {
             let length = length(lane)?;
@@ -85,12 +123,35 @@ impl LanePositions {
                     pos += place(&via, pos, 1.0)?;
                 }
             }
-            if *lane == beside {
+            if *lane == meets {
                 start = pos;
             }
             pos += place(lane, pos, 1.0)?;
         }
-        place(accel, start, length(&beside)? / length(accel)?)?;
+        let mut entry = Vec::new();
+        match joins {
+            Some((_, vias)) => {
+                for via in vias.iter().rev() {
+                    start -= length(via)?;
+                    place(via, start, 1.0)?;
+                }
+                // Every junction lane out of the ramp is an entry lane, laid from the stop
+                // line on (a ramp linked to several lanes may take any of them).
+                for link in links.iter().filter(|l| l.from == *accel) {
+                    if let Some(via) = &link.via {
+                        if vias.first() != Some(via) {
+                            place(via, start, 1.0)?;
+                        }
+                        entry.push(via.clone());
+                    }
+                }
+                start -= length(accel)?;
+                place(accel, start, 1.0)?;
+            }
+            None => {
+                place(accel, start, length(&meets)? / length(accel)?)?;
+            }
+        }
         for k in (0..ramp_lanes.len() - 1).rev() {
             let vias = via_lanes(&links, &ramp_lanes[k], &ramp_lanes[k + 1], "ramp_lanes")?;
             for via in vias.iter().rev() {
@@ -100,12 +161,28 @@ impl LanePositions {
             start -= length(&ramp_lanes[k])?;
             place(&ramp_lanes[k], start, 1.0)?;
         }
-        let road_speed = net.get(&beside).and_then(|l| l.speed);
-        Ok(LanePositions { lanes, road_speed })
+        let road_speed = net.get(&meets).and_then(|l| l.speed);
+        Ok(LanePositions {
+            lanes,
+            form,
+            entry,
+            road_speed,
+        })
+    }
+
+    /// How the ramp joins the target lane.
+    pub fn form(&self) -> MergeForm {
+        self.form
+    }
+
+    /// Whether `lane` is a junction lane out of a junction merge's last ramp lane: a vehicle
+    /// on it has crossed the stop line and is entering the target lane.
+    pub fn is_entry(&self, lane: &str) -> bool {
+        self.entry.iter().any(|l| l == lane)
     }
 
     /// The speed limit of the target lane where egos merge (the lane beside the acceleration
-    /// lane), m/s; none when the network does not give one.
+    /// lane, or the one a junction merge leads into), m/s; none when the network does not give one.
     pub fn road_speed(&self) -> Option<f64> {
         self.road_speed
     }
@@ -135,11 +212,13 @@ fn lanes_of(doc: &roxmltree::Document) -> HashMap<String, NetLane> {
         .collect()
 }
 
-/// A connection between two lanes, and the junction lane it passes through first.
+/// A connection between two lanes, the junction lane it passes through first, and its right of
+/// way (SUMO's link state: `M` major, `m` minor, `Z` zipper, `=` equal, ...).
 pub(crate) struct Link {
     pub(crate) from: String,
     pub(crate) to: String,
     via: Option<String>,
+    pub(crate) state: String,
 }
 
 /// The network's connections, lane to lane, in file order.
@@ -152,6 +231,7 @@ pub(crate) fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
                 from: format!("{}_{}", n.attribute("from")?, n.attribute("fromLane")?),
                 to: format!("{}_{}", n.attribute("to")?, n.attribute("toLane")?),
                 via: n.attribute("via").map(str::to_owned),
+                state: n.attribute("state").unwrap_or("M").to_owned(),
             })
         })
         .collect()
@@ -227,6 +307,45 @@ mod tests {
         assert_eq!(p.span("r_0"), Some((38.0, 88.0)));
         assert_eq!(p.span("m_0"), Some((93.0, 133.0)));
         assert_eq!(p.position("elsewhere_0", 1.0), None);
+    }
+
+    /// A junction merge: target `a_0` (100 m) -> `:j_1_0` (6 m) -> `o_0` (50 m); the ramp
+    /// `r_0` (40 m) ends at the junction and leads into `o_0` through `:j_0_0` (8 m, a minor
+    /// link) and into `o_1` through `:j_0_1` (9 m).
+    const JUNCTION: &str = r#"<net>
+        <edge id=":j_0" function="internal"><lane id=":j_0_0" index="0" length="8.00"/><lane id=":j_0_1" index="1" length="9.00"/></edge>
+        <edge id=":j_1" function="internal"><lane id=":j_1_0" index="0" length="6.00"/></edge>
+        <edge id="a"><lane id="a_0" index="0" length="100.00"/></edge>
+        <edge id="r"><lane id="r_0" index="0" length="40.00"/></edge>
+        <edge id="o"><lane id="o_0" index="0" length="50.00"/><lane id="o_1" index="1" length="50.00"/></edge>
+        <connection from="a" to="o" fromLane="0" toLane="0" via=":j_1_0" state="M"/>
+        <connection from=":j_1" to="o" fromLane="0" toLane="0"/>
+        <connection from="r" to="o" fromLane="0" toLane="0" via=":j_0_0" state="m"/>
+        <connection from="r" to="o" fromLane="0" toLane="1" via=":j_0_1" state="m"/>
+        <connection from=":j_0" to="o" fromLane="0" toLane="0"/>
+        <connection from=":j_0" to="o" fromLane="1" toLane="1"/>
+    </net>"#;
+
+    #[test]
+    fn a_junction_merge_ends_the_ramp_where_its_junction_lane_meets_the_target_lanes() {
+        let doc = roxmltree::Document::parse(JUNCTION).unwrap();
+        let p = LanePositions::of_network(&doc, &lanes(&["r_0"]), &lanes(&["a_0", "o_0"]), 0.0).unwrap();
+        assert_eq!(p.form(), MergeForm::Junction);
+        // o_0 starts at 100 + 6; the ramp's 8 m junction lane ends there, so the stop line
+        // (the end of r_0) is at 98 and r_0 starts at 58.
+        assert_eq!(p.span("o_0"), Some((106.0, 156.0)));
+        assert_eq!(p.span(":j_0_0"), Some((98.0, 106.0)));
+        assert_eq!(p.span("r_0"), Some((58.0, 98.0)));
+        // The other junction lane out of the ramp starts at the stop line too.
+        assert_eq!(p.position(":j_0_1", 2.0), Some(100.0));
+        assert!(p.is_entry(":j_0_0") && p.is_entry(":j_0_1"));
+        assert!(!p.is_entry(":j_1_0") && !p.is_entry("r_0"));
+        // The acceleration-lane network is not a junction merge.
+        let doc = roxmltree::Document::parse(NET).unwrap();
+        let p = LanePositions::of_network(&doc, &lanes(&["r_0", "m_0"]), &lanes(&["a_0", "m_1", "b_0"]), 0.0)
+            .unwrap();
+        assert_eq!(p.form(), MergeForm::AccelerationLane);
+        assert!(!p.is_entry(":j2_0"));
     }
 
     #[test]
