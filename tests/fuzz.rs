@@ -224,6 +224,6 @@ fn fuzz_sumo_input_checks() {
     ]);
     fuzz("sumo-inputs", &corpus, |path| {
         let _ = config_files(path);
-        let _ = check_routes(&[path.to_path_buf()]);
+        let _ = check_routes(&[path.to_path_buf()], None);
     });
 }

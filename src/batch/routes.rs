@@ -1,10 +1,12 @@
 //! `mpgdrive routes`: scenario sets as ordinary SUMO route files.
 //!
 //! A base route file (for example `sumo_nets/i80_merge/i80.rou.xml`) gives the vehicle types,
-//! routes and flows. For every demand scale and seed, each flow becomes explicit vehicles with
-//! Poisson arrivals at `scale x vehsPerHour` (ChaCha8, stream = flow index, so a flow's
-//! vehicles do not depend on the other flows). Ramp flows (whose route starts on the edge of a
-//! ramp lane of `merge.toml`) can be rescaled to carry a given share of the demand, and a flow
+//! routes (or route distributions) and flows. For every demand scale and seed, each flow becomes
+//! explicit vehicles (trips, for a flow with `from`/`to` instead of a route, which SUMO routes)
+//! with Poisson arrivals at `scale x` its rate (`vehsPerHour`, `period`, `probability` or
+//! `number`; ChaCha8, stream = flow index, so a flow's vehicles do not depend on the other
+//! flows). Ramp flows (whose route, or `from`, starts on the edge of a ramp lane of
+//! `merge.toml`) can be rescaled to carry a given share of the demand, and a flow
 //! whose type is a `vTypeDistribution` that holds a controllable type draws each vehicle's type
 //! with the given controllable share; freeway flows of a plain type can carry a share of the
 //! controllable type too (a penetration rate). Types and routes are copied verbatim from the
@@ -87,7 +89,9 @@ pub enum RoutesError {
 struct Flow {
     id: String,
     vtype: String,
-    route: String,
+    /// The named route or route distribution; none for a flow with `from`/`to` (kept in
+    /// `extra`), whose vehicles become trips that SUMO routes.
+    route: Option<String>,
     begin: f64,
     end: f64,
     per_hour: f64,
@@ -95,6 +99,19 @@ struct Flow {
     extra: Vec<(String, String)>,
     ramp: bool,
 }
+
+/// Attributes of a flow that the generated vehicles do not copy.
+const RATE_ATTRIBUTES: [&str; 9] = [
+    "id",
+    "type",
+    "route",
+    "begin",
+    "end",
+    "vehsPerHour",
+    "period",
+    "probability",
+    "number",
+];
 
 /// The parts of a base route file the generator uses.
 struct Base {
@@ -141,10 +158,15 @@ fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base,
                     mixes.push((id, c.to_string(), o.to_string()));
                 }
             }
-            "route" => {
+            "route" | "routeDistribution" => {
                 verbatim.push(text[node.range()].to_owned());
-                let id = attr("id").ok_or_else(|| bad("a <route> without id".into()))?;
-                let first = attr("edges").unwrap_or_default();
+                let id =
+                    attr("id").ok_or_else(|| bad(format!("a <{}> without id", node.tag_name().name())))?;
+                // A distribution's first edge is its first route's.
+                let first = std::iter::once(node)
+                    .chain(node.children().filter(|n| n.has_tag_name("route")))
+                    .find_map(|n| n.attribute("edges"))
+                    .unwrap_or_default();
                 routes.push((id, first.split_whitespace().next().unwrap_or("").to_owned()));
             }
             "flow" => {
@@ -157,26 +179,44 @@ fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base,
                         ))),
                     }
                 };
-                let route = attr("route")
-                    .ok_or_else(|| bad("flow without `route` (only route flows are supported)".into()))?;
-                let first_edge = routes
-                    .iter()
-                    .find(|(id, _)| *id == route)
-                    .map(|(_, e)| e.clone())
-                    .ok_or_else(|| bad(format!("flow uses route `{route}`, not defined before it")))?;
+                let route = attr("route");
+                let first_edge = match &route {
+                    Some(route) => routes
+                        .iter()
+                        .find(|(id, _)| id == route)
+                        .map(|(_, e)| e.clone())
+                        .ok_or_else(|| bad(format!("flow uses route `{route}`, not defined before it")))?,
+                    None => attr("from")
+                        .filter(|_| node.attribute("to").is_some())
+                        .ok_or_else(|| bad("flow without `route` or `from` and `to`".into()))?,
+                };
+                let (begin, end) = (num("begin")?, num("end")?);
+                // The rate: vehsPerHour, period (s between vehicles), probability (per second)
+                // or number (over begin..end).
+                let per_hour = if node.attribute("vehsPerHour").is_some() {
+                    num("vehsPerHour")?
+                } else if node.attribute("period").is_some() {
+                    3600.0 / num("period")?.max(f64::MIN_POSITIVE)
+                } else if node.attribute("probability").is_some() {
+                    3600.0 * num("probability")?
+                } else if node.attribute("number").is_some() {
+                    num("number")? * 3600.0 / (end - begin).max(f64::MIN_POSITIVE)
+                } else {
+                    return Err(bad(
+                        "flow without vehsPerHour, period, probability or number".into()
+                    ));
+                };
                 flows.push(Flow {
                     id: attr("id").ok_or_else(|| bad("flow without id".into()))?,
                     vtype: attr("type").unwrap_or_else(|| "DEFAULT_VEHTYPE".into()),
                     ramp: ramp_edges.contains(&first_edge.as_str()),
                     route,
-                    begin: num("begin")?,
-                    end: num("end")?,
-                    per_hour: num("vehsPerHour")?,
+                    begin,
+                    end,
+                    per_hour,
                     extra: node
                         .attributes()
-                        .filter(|a| {
-                            !["id", "type", "route", "begin", "end", "vehsPerHour"].contains(&a.name())
-                        })
+                        .filter(|a| !RATE_ATTRIBUTES.contains(&a.name()))
                         .map(|a| (a.name().to_owned(), a.value().to_owned()))
                         .collect(),
                 });
@@ -185,7 +225,7 @@ fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base,
         }
     }
     if flows.is_empty() {
-        return Err(bad("no <flow> with vehsPerHour to scale".into()));
+        return Err(bad("no <flow> to scale".into()));
     }
     Ok(Base {
         verbatim,
@@ -353,13 +393,17 @@ pub fn generate(
                         .iter()
                         .map(|(a, v)| format!(" {a}=\"{}\"", xml_escape(v)))
                         .collect();
+                    // A flow with from/to gives trips (its from/to/via are in `extra`).
+                    let (tag, route) = match &flow.route {
+                        Some(r) => ("vehicle", format!(" route=\"{}\"", xml_escape(r))),
+                        None => ("trip", String::new()),
+                    };
                     vehicles.push((
                         t,
                         format!(
-                            "    <vehicle id=\"{}.{n}\" type=\"{}\" route=\"{}\" depart=\"{t:.2}\"{extra}/>",
+                            "    <{tag} id=\"{}.{n}\" type=\"{}\"{route} depart=\"{t:.2}\"{extra}/>",
                             xml_escape(&flow.id),
                             xml_escape(&vtype),
-                            xml_escape(&flow.route)
                         ),
                     ));
                     n += 1;

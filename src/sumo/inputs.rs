@@ -1,12 +1,12 @@
 //! SUMO inputs checked before a run starts, so that a bad input writes nothing: the
 //! configuration is a SUMO configuration, its network holds the lanes `merge.toml` names and
-//! the conflict point lies on them, and every route file is XML whose vehicles use routes that
-//! exist. SUMO itself would find most of this only after starting (and writing its outputs),
+//! the conflict point lies on them, and every route file is XML whose vehicles use routes,
+//! types and edges that exist, on paths the network has. SUMO itself would find most of this only after starting (and writing its outputs),
 //! and a conflict point beyond the network would run to the end with no ego.
 
 use crate::sumo::positions::MergeForm;
 use crate::sumo::{LanePositions, MergeGeometry};
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// What is wrong with the inputs (each names its file).
@@ -188,10 +188,76 @@ pub fn check_geometry(
     })?
 }
 
-/// Checks route (and additional) files: well-formed XML, and every `route` a vehicle or flow
-/// names is defined in one of them (as a route or a route distribution). Returns whether any
-/// of them equips vehicles with the SSM device (a `has.ssm.device` parameter set to true).
-pub fn check_routes(files: &[PathBuf]) -> Result<bool, InputError> {
+/// SUMO's built-in vehicle types, which a route file may use without defining them.
+const DEFAULT_TYPES: &[&str] = &[
+    "DEFAULT_VEHTYPE",
+    "DEFAULT_PEDTYPE",
+    "DEFAULT_BIKETYPE",
+    "DEFAULT_CONTAINERTYPE",
+    "DEFAULT_TAXITYPE",
+    "DEFAULT_RAILTYPE",
+];
+
+/// The edges of a network and, for each, the edges its connections lead to.
+#[derive(Debug, Default)]
+struct EdgeGraph {
+    next: HashMap<String, HashSet<String>>,
+}
+
+impl EdgeGraph {
+    fn of(doc: &roxmltree::Document) -> Self {
+        let mut next: HashMap<String, HashSet<String>> = doc
+            .root_element()
+            .children()
+            .filter(|n| n.has_tag_name("edge") && n.attribute("function") != Some("internal"))
+            .filter_map(|n| Some((n.attribute("id")?.to_owned(), HashSet::new())))
+            .collect();
+        for c in doc
+            .root_element()
+            .children()
+            .filter(|n| n.has_tag_name("connection"))
+        {
+            if let (Some(from), Some(to)) = (c.attribute("from"), c.attribute("to")) {
+                if next.contains_key(to) {
+                    if let Some(set) = next.get_mut(from) {
+                        set.insert(to.to_owned());
+                    }
+                }
+            }
+        }
+        EdgeGraph { next }
+    }
+
+    fn has(&self, edge: &str) -> bool {
+        self.next.contains_key(edge)
+    }
+
+    /// Whether a vehicle can drive from `from` to `to` (the same edge counts).
+    fn reaches(&self, from: &str, to: &str, seen: &mut HashMap<String, HashSet<String>>) -> bool {
+        let reach = seen.entry(from.to_owned()).or_insert_with(|| {
+            let mut reach = HashSet::from([from.to_owned()]);
+            let mut todo = vec![from.to_owned()];
+            while let Some(e) = todo.pop() {
+                for n in self.next.get(&e).into_iter().flatten() {
+                    if reach.insert(n.clone()) {
+                        todo.push(n.clone());
+                    }
+                }
+            }
+            reach
+        });
+        reach.contains(to)
+    }
+}
+
+/// Checks route (and additional) files: well-formed XML; every `route` a vehicle or flow
+/// names is defined in one of them (as a route or a route distribution); every vehicle type
+/// used is defined (a vType or a vTypeDistribution) or one of SUMO's defaults; and, given the
+/// network, every edge a route, trip or flow names (`edges`, `from`, `to`, `via`) is in it,
+/// consecutive edges of a route are connected, and a trip's or flow's `to` can be reached from
+/// its `from` through its `via` edges, as SUMO's router needs. Returns whether any of them
+/// equips vehicles with the SSM device (a `has.ssm.device` parameter set to true).
+pub fn check_routes(files: &[PathBuf], net: Option<&Path>) -> Result<bool, InputError> {
     let texts: Vec<(PathBuf, String)> = files
         .iter()
         .map(|f| Ok((f.clone(), read(f)?)))
@@ -200,27 +266,91 @@ pub fn check_routes(files: &[PathBuf]) -> Result<bool, InputError> {
         .iter()
         .map(|(f, t)| Ok((f.as_path(), parse(f, t)?)))
         .collect::<Result<_, InputError>>()?;
-    let defined: HashSet<&str> = docs
-        .iter()
-        .flat_map(|(_, d)| d.descendants())
+    let all = || docs.iter().flat_map(|(_, d)| d.descendants());
+    let defined: HashSet<&str> = all()
         .filter(|n| n.has_tag_name("route") || n.has_tag_name("routeDistribution"))
         .filter_map(|n| n.attribute("id"))
         .collect();
+    let types: HashSet<&str> = all()
+        .filter(|n| n.has_tag_name("vType") || n.has_tag_name("vTypeDistribution"))
+        .filter_map(|n| n.attribute("id"))
+        .chain(DEFAULT_TYPES.iter().copied())
+        .collect();
+    let graph = net.map(|net| with_network(net, EdgeGraph::of)).transpose()?;
+    let mut reach = HashMap::new();
+    const DEPARTING: [&str; 3] = ["vehicle", "flow", "trip"];
     for (path, doc) in &docs {
-        let uses = doc
+        for n in doc
             .descendants()
-            .filter(|n| n.has_tag_name("vehicle") || n.has_tag_name("flow"))
-            .filter_map(|n| Some((n.attribute("id").unwrap_or("?"), n.attribute("route")?)));
-        for (id, route) in uses {
-            if !defined.contains(route) {
+            .filter(|n| DEPARTING.contains(&n.tag_name().name()))
+        {
+            let id = n.attribute("id").unwrap_or("?");
+            if let Some(route) = n.attribute("route").filter(|r| !defined.contains(r)) {
                 return Err(content(
                     path,
                     format!("`{id}` uses route `{route}`, which no route file defines"),
                 ));
             }
+            // A type may also be a list of distributions or types: every one must exist.
+            for ty in n
+                .attribute("type")
+                .into_iter()
+                .flat_map(|t| t.split(','))
+                .map(str::trim)
+            {
+                if !types.contains(ty) {
+                    return Err(content(
+                        path,
+                        format!("`{id}` uses vehicle type `{ty}`, which no route or additional file defines"),
+                    ));
+                }
+            }
+            let Some(graph) = &graph else { continue };
+            let ends: Vec<&str> = n
+                .attribute("from")
+                .into_iter()
+                .chain(n.attribute("via").into_iter().flat_map(str::split_whitespace))
+                .chain(n.attribute("to"))
+                .collect();
+            if let Some(bad) = ends.iter().find(|e| !graph.has(e)) {
+                return Err(content(
+                    path,
+                    format!("`{id}` names edge `{bad}`, which is not in the network"),
+                ));
+            }
+            if let Some(w) = ends.windows(2).find(|w| !graph.reaches(w[0], w[1], &mut reach)) {
+                return Err(content(
+                    path,
+                    format!(
+                        "`{id}`: no route leads from edge `{}` to edge `{}` in the network",
+                        w[0], w[1]
+                    ),
+                ));
+            }
+        }
+        let Some(graph) = &graph else { continue };
+        for r in doc.descendants().filter(|n| n.has_tag_name("route")) {
+            let id = r.attribute("id").unwrap_or("?");
+            let edges: Vec<&str> = r.attribute("edges").unwrap_or("").split_whitespace().collect();
+            if let Some(bad) = edges.iter().find(|e| !graph.has(e)) {
+                return Err(content(
+                    path,
+                    format!("route `{id}` has edge `{bad}`, which is not in the network"),
+                ));
+            }
+            let connected = |w: &&[&str]| graph.next.get(w[0]).is_some_and(|n| n.contains(w[1]));
+            if let Some(w) = edges.windows(2).find(|w| !connected(w)) {
+                return Err(content(
+                    path,
+                    format!(
+                        "route `{id}`: edge `{}` does not lead to `{}` in the network",
+                        w[0], w[1]
+                    ),
+                ));
+            }
         }
     }
-    Ok(docs.iter().flat_map(|(_, d)| d.descendants()).any(|n| {
+    Ok(all().any(|n| {
         n.has_tag_name("param")
             && n.attribute("key") == Some("has.ssm.device")
             && n.attribute("value").is_some_and(|v| v.trim() == "true")
@@ -247,5 +377,8 @@ pub fn check_inputs(
         None => files.routes.clone(),
     };
     routes.extend(files.additional.iter().cloned());
-    Ok((positions, check_routes(&routes)? || files.ssm_option))
+    Ok((
+        positions,
+        check_routes(&routes, Some(&files.net))? || files.ssm_option,
+    ))
 }
