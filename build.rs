@@ -8,6 +8,9 @@
 //!    `src/sumo/shim.h` only, once per prefix, with the prefix stripped from the Rust names.
 //!    SUMO is found through `SUMO_HOME` (`include/` and `lib/` or `lib64/`, as the
 //!    eclipse-sumo wheel lays it out) or else the system paths of Debian's `sumo` package.
+//! 3. The bundled configurations and policies (`configs/`, `policies/`): `$OUT_DIR/bundle.rs`
+//!    lists them with `include_bytes!`, so that the binary finds them from any folder
+//!    (`src/cli/bundled.rs`).
 
 use std::env;
 use std::path::PathBuf;
@@ -26,6 +29,44 @@ fn main() {
     }
     #[cfg(feature = "sumo")]
     sumo_shim::build();
+    bundle();
+}
+
+/// Writes `$OUT_DIR/bundle.rs`: `FILES`, every file under `configs/` and `policies/` as
+/// (path relative to the repository, bytes), sorted by path.
+fn bundle() {
+    let root = PathBuf::from(env::var("CARGO_MANIFEST_DIR").expect("set by cargo"));
+    let mut files = Vec::new();
+    for dir in ["configs", "policies"] {
+        walk(&root.join(dir), &mut files);
+    }
+    files.sort();
+    let mut code = String::from("/// The bundled files: (path relative to the repository, contents).\npub const FILES: &[(&str, &[u8])] = &[\n");
+    for file in &files {
+        println!("cargo:rerun-if-changed={}", file.display());
+        let rel = file.strip_prefix(&root).expect("under the root");
+        let rel = rel.to_string_lossy().replace('\\', "/");
+        code += &format!("    ({rel:?}, include_bytes!({:?})),\n", file.display().to_string());
+    }
+    code += "];\n";
+    let out = PathBuf::from(env::var("OUT_DIR").expect("set by cargo")).join("bundle.rs");
+    std::fs::write(out, code).expect("writing bundle.rs");
+}
+
+/// Every file under `dir` (and the directories, for cargo to rerun when a file is added).
+fn walk(dir: &std::path::Path, files: &mut Vec<PathBuf>) {
+    println!("cargo:rerun-if-changed={}", dir.display());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            walk(&path, files);
+        } else {
+            files.push(path);
+        }
+    }
 }
 
 #[cfg(feature = "sumo")]

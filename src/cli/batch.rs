@@ -177,7 +177,7 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind], routes: &[PathBuf]) 
             args.sumocfg.display()
         )));
     }
-    let config = Config::load(&args.config)?;
+    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
     if !(args.end.is_finite() && args.end > 0.0) {
         return Err(usage(format!(
             "--end {}: must be a positive number of seconds",
@@ -199,7 +199,7 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind], routes: &[PathBuf]) 
         mpgdrive::sumo::inputs::check_routes(&with, Some(&files.net))?;
     }
     for mode in kinds.iter().filter_map(|k| k.mode()) {
-        deployed_policy(&args.policies.of(mode, &config), &args.deploy, &config)?;
+        deployed_policy(&args.policies.of(mode, &config)?, &args.deploy, &config)?;
     }
     Ok(config)
 }
@@ -215,13 +215,13 @@ fn worker_args(args: &BatchArgs, config: &Config) -> Result<Vec<String>> {
     let mut common = vec![
         "cosim".to_string(),
         "--config".into(),
-        abs(&args.config)?,
+        abs(&crate::cli::bundled::resolve(&args.config)?)?,
         "--sumocfg".into(),
         abs(&args.sumocfg)?,
         "--policy".into(),
-        abs(&args.policies.of(Mode::Mpg, config))?,
+        abs(&args.policies.of(Mode::Mpg, config)?)?,
         "--sarl-policy".into(),
-        abs(&args.policies.of(Mode::Sarl, config))?,
+        abs(&args.policies.of(Mode::Sarl, config)?)?,
         "--end".into(),
         args.end.to_string(),
     ];

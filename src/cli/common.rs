@@ -36,7 +36,7 @@ pub struct CommonSettings {
 impl Common {
     /// Loads the configuration and checks `--threads`.
     pub fn settings(&self) -> Result<CommonSettings> {
-        let config = Config::load(&self.config)?;
+        let config = Config::load(&crate::cli::bundled::resolve(&self.config)?)?;
         let seed = self.seed.unwrap_or(config.seed);
         Ok(CommonSettings {
             config,
@@ -74,21 +74,22 @@ pub struct SeedChoice {
 }
 
 impl PolicyPair {
-    /// The policy of a mode: as given, else the shipped set of `config`'s world.
-    pub fn of(&self, mode: Mode, config: &Config) -> PathBuf {
+    /// The policy of a mode: as given, else the shipped set of `config`'s world (the bundled
+    /// copy when the current directory does not hold it: [`crate::cli::bundled`]).
+    pub fn of(&self, mode: Mode, config: &Config) -> Result<PathBuf> {
         let given = match mode {
             Mode::Mpg => &self.policy,
             Mode::Sarl => &self.sarl_policy,
         };
-        given.clone().unwrap_or_else(|| shipped_policies(mode, config))
+        crate::cli::bundled::resolve(&given.clone().unwrap_or_else(|| shipped_policies(mode, config)))
     }
 
     /// Both sets (one policy per seed, MARL then single-agent), checked against `config`'s
     /// world rules.
     pub fn load(&self, config: &Config) -> Result<[Vec<(PolicyNet, Sidecar)>; 2]> {
         Ok([
-            load_policies(&self.of(Mode::Mpg, config), config, Rules::Same)?,
-            load_policies(&self.of(Mode::Sarl, config), config, Rules::Same)?,
+            load_policies(&self.of(Mode::Mpg, config)?, config, Rules::Same)?,
+            load_policies(&self.of(Mode::Sarl, config)?, config, Rules::Same)?,
         ])
     }
 }

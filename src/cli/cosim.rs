@@ -111,7 +111,7 @@ mod with_sumo {
         for &kind in &args.controllers {
             let net = kind
                 .mode()
-                .map(|mode| deployed_policy(&args.policies.of(mode, &config), &args.deploy, &config))
+                .map(|mode| deployed_policy(&args.policies.of(mode, &config)?, &args.deploy, &config))
                 .transpose()?;
             controllers.push((kind, net));
         }
@@ -139,7 +139,7 @@ mod with_sumo {
     /// The arguments checked, before anything is written: the configuration, the geometry
     /// against its network, the route files.
     fn settings(args: &CosimArgs) -> Result<(Config, CosimSettings)> {
-        let config = Config::load(&args.config)?;
+        let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
         if !args.sumocfg.is_file() {
             return Err(usage(format!(
                 "--sumocfg {}: no such file",

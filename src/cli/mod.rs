@@ -2,6 +2,7 @@
 //! library; [`common`] holds what several share.
 
 mod batch;
+mod bundled;
 mod check_mpg;
 mod common;
 mod cosim;

@@ -98,7 +98,7 @@ struct SynthArgs {
 }
 
 fn load_prepared(input: &Input) -> Result<(NgsimConfig, Prepared)> {
-    let ngsim = NgsimConfig::load(&input.ngsim)?;
+    let ngsim = NgsimConfig::load(&crate::cli::bundled::resolve(&input.ngsim)?)?;
     let data = load(&input.input, &ngsim.location)?;
     let prepared = prepare(&data, &ngsim)?;
     for w in &prepared.summary.warnings {
@@ -141,7 +141,7 @@ fn prepare_cmd(args: PrepareArgs) -> Result<()> {
 }
 
 fn eval(args: EvalArgs) -> Result<()> {
-    let config = Config::load(&args.config)?;
+    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
     let [mut mpg, mut sarl] = args.policies.load(&config)?;
     let (ngsim, prepared) = load_prepared(&args.input)?;
     let s = &config.scenario;
@@ -225,8 +225,8 @@ fn scenarios_csv(prepared: &Prepared, scenarios: &[MergeScenario]) -> String {
 }
 
 fn synth(args: SynthArgs) -> Result<()> {
-    let config = Config::load(&args.config)?;
-    let ngsim = NgsimConfig::load(&args.ngsim)?;
+    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
+    let ngsim = NgsimConfig::load(&crate::cli::bundled::resolve(&args.ngsim)?)?;
     let (noise, seed, out) = (args.noise, args.seed, &args.out);
     if !(noise.is_finite() && noise >= 0.0) {
         return Err(usage(format!(

@@ -112,9 +112,9 @@ fn quantiles(study: &Study, surrounding: Surrounding) -> Vec<(f64, f64)> {
 /// Runs `mpgdrive report`.
 pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
-    let config = Config::load(&args.config)?;
+    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
     let threads = threads(args.threads)?;
-    let policies = [Mode::Mpg, Mode::Sarl].map(|m| args.policies.of(m, &config));
+    let policies = [args.policies.of(Mode::Mpg, &config)?, args.policies.of(Mode::Sarl, &config)?];
     check_inputs(&args, &policies)?;
     let [mpg, sarl] = args.policies.load(&config)?;
     let figures = args.out.join("figures");

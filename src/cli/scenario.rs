@@ -99,13 +99,13 @@ fn player_or_none(p: usize) -> String {
 
 /// Runs `mpgdrive scenario`.
 pub fn run(args: ScenarioArgs) -> Result<ExitCode> {
-    let config = Config::load(&args.config)?;
+    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
     let preset = if args.preset == 1 {
         Preset::One
     } else {
         Preset::Two
     };
-    let (files, summary) = scenario(&config, preset, &args.policy, args.policy_seed, &args.out)?;
+    let (files, summary) = scenario(&config, preset, &crate::cli::bundled::resolve(&args.policy)?, args.policy_seed, &args.out)?;
     let mut text = summary;
     for f in files {
         text += &format!("\n  {}", f.display());

@@ -32,7 +32,7 @@ pub struct TrainArgs {
 
 /// Runs `mpgdrive train`.
 pub fn run(args: TrainArgs) -> Result<ExitCode> {
-    let config = Config::load(&args.config)?;
+    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
     let seeds = args.seeds.clone().unwrap_or_else(|| config.eval.seeds.clone());
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     // Ctrl-C: finish the current epoch, write a checkpoint, exit 130.
