@@ -41,12 +41,17 @@ fn bundle() {
         walk(&root.join(dir), &mut files);
     }
     files.sort();
-    let mut code = String::from("/// The bundled files: (path relative to the repository, contents).\npub const FILES: &[(&str, &[u8])] = &[\n");
+    let mut code = String::from(
+        "/// The bundled files: (path relative to the repository, contents).\npub const FILES: &[(&str, &[u8])] = &[\n",
+    );
     for file in &files {
         println!("cargo:rerun-if-changed={}", file.display());
         let rel = file.strip_prefix(&root).expect("under the root");
         let rel = rel.to_string_lossy().replace('\\', "/");
-        code += &format!("    ({rel:?}, include_bytes!({:?})),\n", file.display().to_string());
+        code += &format!(
+            "    ({rel:?}, include_bytes!({:?})),\n",
+            file.display().to_string()
+        );
     }
     code += "];\n";
     let out = PathBuf::from(env::var("OUT_DIR").expect("set by cargo")).join("bundle.rs");

@@ -401,6 +401,44 @@ fn cases() -> Vec<Case> {
             vec!["--sumocfg", CFG, "--route-files", "{D}/r.rou.xml"],
             "r9",
         ),
+        cosim(
+            "a flow from an edge the network does not have",
+            vec![(
+                "r.rou.xml",
+                "<routes><flow id=\"f\" begin=\"0\" end=\"60\" vehsPerHour=\"600\" from=\"no_such_edge\" to=\"out\"/></routes>"
+                    .into(),
+            )],
+            vec!["--sumocfg", CFG, "--route-files", "{D}/r.rou.xml"],
+            "no_such_edge",
+        ),
+        cosim(
+            "a trip against the direction of travel",
+            vec![(
+                "r.rou.xml",
+                "<routes><trip id=\"t\" depart=\"0\" from=\"out\" to=\"ramp\"/></routes>".into(),
+            )],
+            vec!["--sumocfg", CFG, "--route-files", "{D}/r.rou.xml"],
+            "no route leads from edge `out` to edge `ramp`",
+        ),
+        cosim(
+            "a route whose edges are not connected",
+            vec![(
+                "r.rou.xml",
+                "<routes><route id=\"r\" edges=\"ramp main\"/><vehicle id=\"v\" depart=\"0\" route=\"r\"/></routes>"
+                    .into(),
+            )],
+            vec!["--sumocfg", CFG, "--route-files", "{D}/r.rou.xml"],
+            "edge `ramp` does not lead to `main`",
+        ),
+        cosim(
+            "a vehicle type nobody defines",
+            vec![(
+                "r.rou.xml",
+                "<routes><trip id=\"t\" type=\"nope\" depart=\"0\" from=\"main\" to=\"out\"/></routes>".into(),
+            )],
+            vec!["--sumocfg", CFG, "--route-files", "{D}/r.rou.xml"],
+            "vehicle type `nope`",
+        ),
         c(
             "zero duration",
             Vec::new(),

@@ -66,7 +66,7 @@ pub fn run(args: BatchArgs) -> Result<ExitCode> {
     let kinds = parse_controllers(&args.controllers)?;
     let shard = parse_shard(args.shard.as_deref())?;
     let routes = find_routes(&args.routes)?;
-    let config = check_inputs(&args, &kinds, &routes)?;
+    let config = check_inputs(&args, &kinds)?;
     let routes = routes.iter().map(|r| absolute(r)).collect::<Result<Vec<_>>>()?;
     let todo = combos(&routes, &args.controllers, &args.seeds, shard);
     let jobs = match args.jobs {
@@ -168,9 +168,9 @@ fn find_routes(pattern: &str) -> Result<Vec<PathBuf>> {
 }
 
 /// What every worker would refuse is refused here, before any run: the SUMO configuration, the
-/// configuration, the duration, the geometry against its network, the route files, the
-/// policies.
-fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind], routes: &[PathBuf]) -> Result<Config> {
+/// configuration, the duration, the geometry against its network, the policies. A route file
+/// a worker's cosim refuses is a failed run, recorded with its message.
+fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<Config> {
     if !args.sumocfg.is_file() {
         return Err(usage(format!(
             "--sumocfg {}: no such file",
@@ -191,13 +191,6 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind], routes: &[PathBuf]) 
         .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
     let geometry = MergeGeometry::load(&merge)?;
     mpgdrive::sumo::inputs::check_geometry(&geometry, &merge, &files.net)?;
-    // Every route file a worker will run, with the configuration's additional files (types,
-    // routes): refused here rather than by SUMO in a worker.
-    for routes in routes {
-        let mut with = vec![routes.clone()];
-        with.extend(files.additional.iter().cloned());
-        mpgdrive::sumo::inputs::check_routes(&with, Some(&files.net))?;
-    }
     for mode in kinds.iter().filter_map(|k| k.mode()) {
         deployed_policy(&args.policies.of(mode, &config)?, &args.deploy, &config)?;
     }

@@ -50,9 +50,11 @@ fn unpacked() -> Result<PathBuf> {
         None => PathBuf::from(std::env::var_os("HOME").context("neither XDG_CACHE_HOME nor HOME is set")?)
             .join(".cache"),
     };
-    let dir = cache
-        .join("mpgdrive")
-        .join(format!("bundle-{}-{:016x}", env!("CARGO_PKG_VERSION"), fingerprint()));
+    let dir = cache.join("mpgdrive").join(format!(
+        "bundle-{}-{:016x}",
+        env!("CARGO_PKG_VERSION"),
+        fingerprint()
+    ));
     if dir.is_dir() {
         return Ok(dir);
     }
@@ -73,7 +75,12 @@ fn unpacked() -> Result<PathBuf> {
     }
     // Another process may have unpacked the same bundle first.
     if !dir.is_dir() {
-        renamed.with_context(|| format!("unpacking the bundled configurations and policies into {}", dir.display()))?;
+        renamed.with_context(|| {
+            format!(
+                "unpacking the bundled configurations and policies into {}",
+                dir.display()
+            )
+        })?;
     }
     Ok(dir)
 }
@@ -96,7 +103,11 @@ mod tests {
 
     #[test]
     fn the_bundle_holds_the_shipped_configurations_and_policies() {
-        for name in ["configs/paper.toml", "configs/traffic.toml", "policies/traffic/mpg/seed0.safetensors"] {
+        for name in [
+            "configs/paper.toml",
+            "configs/traffic.toml",
+            "policies/traffic/mpg/seed0.safetensors",
+        ] {
             let (_, bytes) = FILES.iter().find(|(f, _)| *f == name).expect(name);
             let on_disk = std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join(name)).unwrap();
             assert_eq!(*bytes, on_disk.as_slice(), "{name}");

@@ -114,7 +114,10 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let t0 = std::time::Instant::now();
     let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
     let threads = threads(args.threads)?;
-    let policies = [args.policies.of(Mode::Mpg, &config)?, args.policies.of(Mode::Sarl, &config)?];
+    let policies = [
+        args.policies.of(Mode::Mpg, &config)?,
+        args.policies.of(Mode::Sarl, &config)?,
+    ];
     check_inputs(&args, &policies)?;
     let [mpg, sarl] = args.policies.load(&config)?;
     let figures = args.out.join("figures");

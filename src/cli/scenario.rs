@@ -105,7 +105,13 @@ pub fn run(args: ScenarioArgs) -> Result<ExitCode> {
     } else {
         Preset::Two
     };
-    let (files, summary) = scenario(&config, preset, &crate::cli::bundled::resolve(&args.policy)?, args.policy_seed, &args.out)?;
+    let (files, summary) = scenario(
+        &config,
+        preset,
+        &crate::cli::bundled::resolve(&args.policy)?,
+        args.policy_seed,
+        &args.out,
+    )?;
     let mut text = summary;
     for f in files {
         text += &format!("\n  {}", f.display());

@@ -1,0 +1,315 @@
+//! Merge networks of every form `net inspect` knows, built here with netconvert (`mpgdrive net
+//! build`): a junction merge into a 1-lane and (with a curved ramp) into a 3-lane freeway, a
+//! lane drop whose two lanes both lead into one, and an acceleration lane. Each is found with
+//! its form, and `cosim --end 300` with only the proposed merge.toml drives mpg, sarl and SUMO's
+//! drivers with at least 20 egos each and no collision involving a controlled vehicle. The runs
+//! start in a folder outside the repository with only `--sumocfg`: the bundled configuration
+//! and policies are found from there.
+#![cfg(feature = "sumo")]
+
+mod common;
+
+use common::bin;
+use mpgdrive::sumo::inspect::find_merges;
+use mpgdrive::sumo::positions::MergeForm;
+use std::path::{Path, PathBuf};
+
+/// A scratch folder outside the repository, removed when dropped.
+struct Outside(PathBuf);
+
+impl Outside {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("mpgdrive-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Outside(dir)
+    }
+}
+
+impl Drop for Outside {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// `mpgdrive net build ARGS --out DIR`.
+fn build(dir: &Path, args: &[&str]) {
+    let out = bin()
+        .args(["net", "build"])
+        .args(args)
+        .arg("--out")
+        .arg(dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// Runs `mpgdrive cosim --json` in `dir` (the installed binary's way: any folder, only
+/// `--sumocfg`), with its own cache for the bundled files, and returns the runs.
+fn cosim_in(dir: &Path, cache: &Path, args: &[&str]) -> serde_json::Value {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"))
+        .current_dir(dir)
+        .env("XDG_CACHE_HOME", cache)
+        .env_remove("MPGDRIVE_HOME")
+        .args([
+            "cosim",
+            "--sumocfg",
+            "merge.sumocfg",
+            "--end",
+            "300",
+            "--no-diagrams",
+            "--json",
+        ])
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn every_merge_form_is_found_and_driven_without_a_controlled_collision() {
+    let root = Outside::new("zoo");
+    let cache = root.0.join("cache");
+    let cases: [(&str, &[&str], MergeForm); 4] = [
+        (
+            "junction-1",
+            &[
+                "--form",
+                "junction",
+                "--lanes",
+                "1",
+                "--speed",
+                "30",
+                "--lane-flow",
+                "300",
+            ],
+            MergeForm::Junction,
+        ),
+        (
+            "junction-3-curved",
+            &[
+                "--form",
+                "junction",
+                "--lanes",
+                "3",
+                "--speed",
+                "30",
+                "--lane-flow",
+                "200",
+                "--curved",
+            ],
+            MergeForm::Junction,
+        ),
+        (
+            "lane-drop",
+            &[
+                "--form",
+                "lane-drop",
+                "--lanes",
+                "2",
+                "--speed",
+                "25",
+                "--lane-flow",
+                "500",
+            ],
+            MergeForm::Junction,
+        ),
+        (
+            "acceleration",
+            &[
+                "--form",
+                "acceleration",
+                "--lanes",
+                "1",
+                "--speed",
+                "33",
+                "--accel-lane",
+                "150",
+                "--lane-flow",
+                "1200",
+            ],
+            MergeForm::AccelerationLane,
+        ),
+    ];
+    for (name, args, form) in cases {
+        let dir = root.0.join(name);
+        build(&dir, args);
+        let merges = find_merges(&dir.join("merge.net.xml")).unwrap();
+        assert_eq!(merges.len(), 1, "{name}");
+        assert_eq!(merges[0].form, form, "{name}");
+        // A junction merge's conflict point is the stop line, where the ramp lane ends.
+        if form == MergeForm::Junction {
+            let toml = std::fs::read_to_string(dir.join("merge.toml")).unwrap();
+            let x_c: f64 = toml
+                .lines()
+                .find_map(|l| l.strip_prefix("conflict_point = "))
+                .and_then(|l| l.split_whitespace().next())
+                .unwrap()
+                .parse()
+                .unwrap();
+            assert!(
+                merges[0].lane_end - x_c < 0.1 && x_c <= merges[0].lane_end,
+                "{name}: {x_c}"
+            );
+        }
+        let runs = cosim_in(&dir, &cache, &[]);
+        for run in runs.as_array().unwrap() {
+            let who = format!("{name}, {}", run["controller"]);
+            let egos = run["egos"].as_array().unwrap();
+            let finished = egos.iter().filter(|e| e["finished"] == true).count();
+            assert!(
+                finished >= 20,
+                "{who}: {finished} of {} egos finished",
+                egos.len()
+            );
+            let controlled = run["collisions"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter(|c| c["controlled"] == true)
+                .count();
+            assert_eq!(controlled, 0, "{who}");
+        }
+    }
+    // The bundled policies were unpacked into the cache given, once.
+    let unpacked: Vec<_> = std::fs::read_dir(cache.join("mpgdrive")).unwrap().collect();
+    assert_eq!(unpacked.len(), 1);
+}
+
+#[test]
+fn at_a_junction_merge_the_entry_rule_alone_keeps_the_policy_safe() {
+    // SUMO's safe speed and right of way off for the policy's vehicles (speed mode 0): only
+    // the entry rule at the stop line decides when an ego enters, on a busy 1-lane freeway.
+    let root = Outside::new("junction-exact");
+    let dir = root.0.join("net");
+    build(
+        &dir,
+        &[
+            "--form",
+            "junction",
+            "--lanes",
+            "1",
+            "--speed",
+            "30",
+            "--lane-flow",
+            "700",
+        ],
+    );
+    let runs = cosim_in(
+        &dir,
+        &root.0.join("cache"),
+        &["--controllers", "mpg,sarl", "--speed-mode", "0"],
+    );
+    for run in runs.as_array().unwrap() {
+        let egos = run["egos"].as_array().unwrap();
+        assert!(egos.len() >= 20, "{}", run["controller"]);
+        assert!(
+            run["collisions"].as_array().unwrap().is_empty(),
+            "{}",
+            run["collisions"]
+        );
+    }
+}
+
+#[test]
+fn route_files_as_users_write_them_run_in_cosim_routes_and_batch() {
+    // Types in an additional file; one route file of from/to flows and trips, one of flows on
+    // a route distribution. `routes --base` scales both; cosim and batch run them.
+    let root = Outside::new("user-routes");
+    let dir = root.0.join("net");
+    build(
+        &dir,
+        &[
+            "--form",
+            "junction",
+            "--lanes",
+            "1",
+            "--speed",
+            "25",
+            "--lane-flow",
+            "400",
+        ],
+    );
+    let types = "<additional>\n  <vType id=\"human\" length=\"5\" minGap=\"2\" sigma=\"0.5\"/>\n  \
+                 <vType id=\"ctrl\" length=\"5\" minGap=\"2\" sigma=\"0.5\"/>\n</additional>\n";
+    std::fs::write(dir.join("types.add.xml"), types).unwrap();
+    let cfg = "<configuration><input><net-file value=\"merge.net.xml\"/><route-files value=\"trips.rou.xml\"/>\
+               <additional-files value=\"types.add.xml\"/></input><time><step-length value=\"0.1\"/></time></configuration>\n";
+    std::fs::write(dir.join("merge.sumocfg"), cfg).unwrap();
+    let trips = "<routes>\n  <trip id=\"first\" type=\"ctrl\" depart=\"0\" from=\"ramp\" to=\"out\" departSpeed=\"max\"/>\n  \
+                 <flow id=\"main\" type=\"human\" begin=\"0\" end=\"120\" period=\"9\" from=\"in\" to=\"out\" departSpeed=\"max\"/>\n  \
+                 <flow id=\"ramp\" type=\"ctrl\" begin=\"0\" end=\"120\" vehsPerHour=\"400\" from=\"ramp\" via=\"out\" to=\"out\" departSpeed=\"max\"/>\n</routes>\n";
+    std::fs::write(dir.join("trips.rou.xml"), trips).unwrap();
+    let dist = "<routes>\n  <routeDistribution id=\"both\">\n    <route id=\"fw\" edges=\"in out\" probability=\"0.6\"/>\n    \
+                <route id=\"on\" edges=\"ramp out\" probability=\"0.4\"/>\n  </routeDistribution>\n  \
+                <flow id=\"mix\" type=\"ctrl\" begin=\"0\" end=\"120\" vehsPerHour=\"900\" route=\"both\" departSpeed=\"max\"/>\n</routes>\n";
+    std::fs::write(dir.join("dist.rou.xml"), dist).unwrap();
+    let cache = root.0.join("cache");
+    for routes in ["trips.rou.xml", "dist.rou.xml"] {
+        let runs = cosim_in(
+            &dir,
+            &cache,
+            &["--route-files", routes, "--controllers", "mpg,sumo"],
+        );
+        for run in runs.as_array().unwrap() {
+            let egos = run["egos"].as_array().unwrap().len();
+            assert!(egos >= 5, "{routes}, {}: {egos} egos", run["controller"]);
+        }
+        let out = bin()
+            .current_dir(&dir)
+            .args([
+                "routes",
+                "--base",
+                routes,
+                "--scales",
+                "1.0",
+                "--seeds",
+                "0",
+                "--duration",
+                "120",
+                "--out",
+            ])
+            .arg(format!("scaled-{routes}"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{routes}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    // The from/to flows become trips, the distribution's flow vehicles on it.
+    let scaled = std::fs::read_to_string(dir.join("scaled-trips.rou.xml/trips_d1.00_s0.rou.xml")).unwrap();
+    assert!(
+        scaled.contains("<trip id=\"ramp.0\" type=\"ctrl\"") && scaled.contains("via=\"out\""),
+        "{scaled}"
+    );
+    let scaled = std::fs::read_to_string(dir.join("scaled-dist.rou.xml/dist_d1.00_s0.rou.xml")).unwrap();
+    assert!(scaled.contains("<routeDistribution id=\"both\">") && scaled.contains("route=\"both\""));
+    std::fs::create_dir(dir.join("all")).unwrap();
+    for f in ["trips.rou.xml", "dist.rou.xml"] {
+        std::fs::copy(dir.join(f), dir.join("all").join(f)).unwrap();
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"))
+        .current_dir(&dir)
+        .env("XDG_CACHE_HOME", &cache)
+        .args([
+            "batch",
+            "--sumocfg",
+            "merge.sumocfg",
+            "--routes",
+            "all/*.rou.xml",
+            "--controllers",
+            "sumo,mpg",
+        ])
+        .args(["--end", "150", "--jobs", "2", "--out", "batch"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for run in std::fs::read_dir(dir.join("batch/runs")).unwrap() {
+        let run: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(run.unwrap().path()).unwrap()).unwrap();
+        assert_eq!(run["status"], "ok", "{run}");
+    }
+}
