@@ -46,7 +46,7 @@ fn demand_scales_shares_and_seeds() {
         seeds: vec![0, 1],
         duration: 3600.0,
     };
-    let manifest = generate(&base, &geometry, &spec, &out).unwrap();
+    let manifest = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
     assert_eq!(manifest.len(), 4);
     for entry in &manifest {
         let v = vehicles(&out.join(&entry.file));
@@ -77,7 +77,7 @@ fn demand_scales_shares_and_seeds() {
     }
     // The same seed gives the same file; another seed another one.
     let again = out_dir("i80-again");
-    generate(&base, &geometry, &spec, &again).unwrap();
+    generate(&base, std::slice::from_ref(&geometry), &spec, &again).unwrap();
     let read = |d: &Path, f: &str| std::fs::read_to_string(d.join(f)).unwrap();
     assert_eq!(read(&out, &manifest[0].file), read(&again, &manifest[0].file));
     assert_ne!(read(&out, &manifest[0].file), read(&out, &manifest[1].file));
@@ -94,7 +94,7 @@ fn out_of_range_shares_are_refused() {
         seeds: vec![0],
         duration: 60.0,
     };
-    let err = generate(&base, &geometry, &spec, &out_dir("bad")).unwrap_err();
+    let err = generate(&base, std::slice::from_ref(&geometry), &spec, &out_dir("bad")).unwrap_err();
     assert!(err.to_string().contains("--ramp-share 1.5"), "{err}");
 }
 
@@ -110,7 +110,7 @@ fn a_controllable_share_sweep_keeps_the_arrivals_and_changes_the_types() {
         seeds: vec![3],
         duration: 300.0,
     };
-    let manifest = generate(&base, &geometry, &spec, &out).unwrap();
+    let manifest = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
     let files: Vec<(&str, Option<f64>)> = manifest
         .iter()
         .map(|e| (e.file.as_str(), e.controllable_share))
@@ -163,7 +163,7 @@ fn regression_fuzz_a_nan_begin_or_an_absurd_rate_is_refused_not_looped_on() {
     ] {
         let path = dir.join("base.rou.xml");
         std::fs::write(&path, text.replacen(from, to, 1)).unwrap();
-        let err = generate(&path, &geometry, &spec, &dir.join("out")).unwrap_err();
+        let err = generate(&path, std::slice::from_ref(&geometry), &spec, &dir.join("out")).unwrap_err();
         assert!(err.to_string().contains(needle), "{err}");
         assert!(!dir.join("out").exists(), "nothing written");
     }
@@ -181,8 +181,8 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
         seeds: vec![3],
         duration: 900.0,
     };
-    let plain = generate(&base, &geometry, &spec(None), &out).unwrap();
-    let mixed = generate(&base, &geometry, &spec(Some(0.3)), &out).unwrap();
+    let plain = generate(&base, std::slice::from_ref(&geometry), &spec(None), &out).unwrap();
+    let mixed = generate(&base, std::slice::from_ref(&geometry), &spec(Some(0.3)), &out).unwrap();
     assert_eq!(mixed[0].file, "i80_d1.20_m0.30_s3.rou.xml");
     assert_eq!(mixed[0].mainline_share, Some(0.3));
     let (a, b) = (
@@ -215,7 +215,7 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
         r#"<routes><vType id="human"/><route id="freeway" edges="approach main1"/><flow id="f" type="human" route="freeway" begin="0" end="60" vehsPerHour="600"/></routes>"#,
     )
     .unwrap();
-    let err = generate(&bare, &geometry, &spec(Some(0.3)), &out).unwrap_err();
+    let err = generate(&bare, std::slice::from_ref(&geometry), &spec(Some(0.3)), &out).unwrap_err();
     assert!(
         err.to_string()
             .contains("needs a vType of a controllable type (ctrl)"),

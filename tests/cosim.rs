@@ -266,6 +266,7 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
     for (scene, internal) in &episodes {
         // The policy observes the episode's desired speed in SUMO too (merge.toml's key).
         let geometry = MergeGeometry {
+            name: None,
             desired_speed: scene.v_desired,
             ..geometry.clone()
         };

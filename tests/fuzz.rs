@@ -210,7 +210,7 @@ fn fuzz_route_generator_base_file() {
         "sumo_nets/single_lane_merge/merge.rou.xml",
     ]);
     fuzz("routes", &corpus, |path| {
-        let _ = generate(path, &geometry, &spec, &out);
+        let _ = generate(path, std::slice::from_ref(&geometry), &spec, &out);
     });
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -313,3 +313,90 @@ fn route_files_as_users_write_them_run_in_cosim_routes_and_batch() {
         assert_eq!(run["status"], "ok", "{run}");
     }
 }
+
+#[test]
+fn a_corridor_with_three_on_ramps_runs_from_one_merge_toml_and_reports_each_merge() {
+    let root = Outside::new("corridor");
+    let dir = root.0.join("net");
+    build(
+        &dir,
+        &[
+            "--form",
+            "acceleration",
+            "--ramps",
+            "3",
+            "--lanes",
+            "2",
+            "--speed",
+            "30",
+            "--lane-flow",
+            "600",
+            "--ramp-flow",
+            "300",
+        ],
+    );
+    // `net inspect --out` writes every merge it finds, as [[merge]] tables.
+    let out = bin()
+        .args(["net", "inspect"])
+        .arg(dir.join("merge.net.xml"))
+        .arg("--out")
+        .arg(dir.join("inspected.toml"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let merges = mpgdrive::sumo::MergeGeometry::load_all(&dir.join("inspected.toml")).unwrap();
+    let mut names: Vec<String> = merges.iter().map(|m| m.label()).collect();
+    names.sort();
+    assert_eq!(names, ["ramp", "ramp2", "ramp3"]);
+    let runs = cosim_in(&dir, &root.0.join("cache"), &["--controllers", "mpg,sumo"]);
+    for run in runs.as_array().unwrap() {
+        let who = run["controller"].to_string();
+        let merges = run["merges"].as_array().unwrap();
+        assert_eq!(merges.len(), 3, "{who}");
+        let egos = run["egos"].as_array().unwrap();
+        for (k, m) in merges.iter().enumerate() {
+            // Egos are picked up at each ramp, and each merge counts its own.
+            let mine = egos.iter().filter(|e| e["merge"] == k).count();
+            assert!(mine >= 15, "{who}, {}: {mine} egos", m["name"]);
+            assert_eq!(m["egos"], mine, "{who}");
+            assert_eq!(m["controlled_collisions"], 0, "{who}");
+        }
+        let controlled = run["collisions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|c| c["controlled"] == true)
+            .count();
+        assert_eq!(controlled, 0, "{who}");
+    }
+    // The markdown has a row per merge.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"))
+        .current_dir(&dir)
+        .env("XDG_CACHE_HOME", root.0.join("cache"))
+        .args([
+            "cosim",
+            "--sumocfg",
+            "merge.sumocfg",
+            "--end",
+            "60",
+            "--controllers",
+            "sumo",
+            "--out",
+            "md",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let md = String::from_utf8_lossy(&out.stdout);
+    for name in ["ramp", "ramp2", "ramp3"] {
+        assert!(md.contains(&format!("| {name} |")), "{md}");
+        assert!(
+            dir.join("md")
+                .join(format!(
+                    "timespace_sumo_{}.png",
+                    &name[4..].parse::<usize>().unwrap_or(1)
+                ))
+                .is_file()
+        );
+    }
+}

@@ -122,17 +122,18 @@ struct Base {
     mixes: Vec<(String, String, String)>,
 }
 
-fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base, RoutesError> {
+fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base, RoutesError> {
     let bad = |message: String| RoutesError::Base {
         path: path.to_path_buf(),
         message,
     };
     let doc = roxmltree::Document::parse(text).map_err(|e| bad(e.to_string()))?;
-    let ramp_edges: Vec<&str> = geometry
-        .ramp_lanes
+    let ramp_edges: Vec<&str> = merges
         .iter()
+        .flat_map(|g| &g.ramp_lanes)
         .filter_map(|l| split_lane_id(l).map(|(e, _)| e))
         .collect();
+    let controllable = controllable_types(merges);
     let mut verbatim = Vec::new();
     let mut routes = Vec::new();
     let mut mixes = Vec::new();
@@ -148,12 +149,8 @@ fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base,
                     .filter(|n| n.has_tag_name("vType"))
                     .filter_map(|n| n.attribute("id"))
                     .collect();
-                let ctrl = members
-                    .iter()
-                    .find(|m| geometry.controllable_types.iter().any(|c| c == *m));
-                let other = members
-                    .iter()
-                    .find(|m| !geometry.controllable_types.iter().any(|c| c == *m));
+                let ctrl = members.iter().find(|m| controllable.contains(m));
+                let other = members.iter().find(|m| !controllable.contains(m));
                 if let (Some(id), Some(c), Some(o)) = (attr("id"), ctrl, other) {
                     mixes.push((id, c.to_string(), o.to_string()));
                 }
@@ -235,13 +232,24 @@ fn parse_base(path: &Path, text: &str, geometry: &MergeGeometry) -> Result<Base,
 }
 
 /// A controllable type the base file defines (as a vType or a member of a distribution).
-fn controllable_type(base: &Base, geometry: &MergeGeometry) -> Option<String> {
-    geometry.controllable_types.iter().find_map(|c| {
+fn controllable_type(base: &Base, merges: &[MergeGeometry]) -> Option<String> {
+    controllable_types(merges).into_iter().find_map(|c| {
         base.verbatim
             .iter()
             .any(|v| v.contains(&format!("id=\"{c}\"")))
-            .then(|| c.clone())
+            .then(|| c.to_owned())
     })
+}
+
+/// The controllable types of every merge, each once, in order.
+fn controllable_types(merges: &[MergeGeometry]) -> Vec<&str> {
+    let mut types: Vec<&str> = Vec::new();
+    for t in merges.iter().flat_map(|g| &g.controllable_types) {
+        if !types.contains(&t.as_str()) {
+            types.push(t);
+        }
+    }
+    types
 }
 
 fn check_share(name: &str, x: Option<f64>) -> Result<(), RoutesError> {
@@ -267,7 +275,7 @@ const MAX_VEHICLES: f64 = 1e7;
 /// are given.
 pub fn generate(
     base_path: &Path,
-    geometry: &MergeGeometry,
+    merges: &[MergeGeometry],
     spec: &DemandSpec,
     out: &Path,
 ) -> Result<Vec<ManifestEntry>, RoutesError> {
@@ -297,17 +305,15 @@ pub fn generate(
         move |source| RoutesError::Io { path, source }
     };
     let text = std::fs::read_to_string(base_path).map_err(io(base_path))?;
-    let base = parse_base(base_path, &text, geometry)?;
+    let base = parse_base(base_path, &text, merges)?;
     let mainline_type = match spec.mainline_share {
-        Some(_) => Some(
-            controllable_type(&base, geometry).ok_or_else(|| RoutesError::Base {
-                path: base_path.to_path_buf(),
-                message: format!(
-                    "--mainline-controllable-share needs a vType of a controllable type ({}) in the file",
-                    geometry.controllable_types.join(", ")
-                ),
-            })?,
-        ),
+        Some(_) => Some(controllable_type(&base, merges).ok_or_else(|| RoutesError::Base {
+            path: base_path.to_path_buf(),
+            message: format!(
+                "--mainline-controllable-share needs a vType of a controllable type ({}) in the file",
+                controllable_types(merges).join(", ")
+            ),
+        })?),
         None => None,
     };
     let total: f64 = base.flows.iter().map(|f| f.per_hour).sum();

@@ -189,8 +189,9 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<Config> {
         .merge
         .clone()
         .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
-    let geometry = MergeGeometry::load(&merge)?;
-    mpgdrive::sumo::inputs::check_geometry(&geometry, &merge, &files.net)?;
+    for geometry in MergeGeometry::load_all(&merge)? {
+        mpgdrive::sumo::inputs::check_geometry(&geometry, &merge, &files.net)?;
+    }
     for mode in kinds.iter().filter_map(|k| k.mode()) {
         deployed_policy(&args.policies.of(mode, &config)?, &args.deploy, &config)?;
     }

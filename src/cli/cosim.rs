@@ -164,9 +164,9 @@ mod with_sumo {
             .merge
             .clone()
             .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
-        let geometry = MergeGeometry::load(&merge)?;
+        let geometries = MergeGeometry::load_all(&merge)?;
         let (positions, ssm_equipped) =
-            mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometry, &merge)?;
+            mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometries, &merge)?;
         if !ssm_equipped {
             eprintln!(
                 "cosim: {} equips no vehicle with the SSM device: every vehicle gets one (the conflict metrics need it)",
@@ -176,9 +176,8 @@ mod with_sumo {
         let settings = CosimSettings {
             sumocfg: args.sumocfg.clone(),
             route_files: args.route_files.clone(),
-            geometry,
+            merges: geometries.into_iter().zip(positions).collect(),
             geometry_path: merge,
-            positions,
             seed: args.seed,
             end: args.end,
             modes: ControlModes {
@@ -301,36 +300,40 @@ mod with_sumo {
         )
     }
 
-    /// `timespace_<controller>.png` for every run that recorded one, all on one scale.
+    /// `timespace_<controller>.png` for every run that recorded one, all on one scale; with
+    /// several merges one per merge, `timespace_<controller>_<merge>.png`.
     fn write_diagrams(out: &Path, runs: &[ControllerRun]) -> Result<()> {
         let started = std::time::Instant::now();
         let recorded: Vec<_> = runs
             .iter()
-            .filter_map(|r| r.timespace.as_ref().map(|t| (r, t)))
+            .flat_map(|r| r.timespace.iter().enumerate().map(move |(k, t)| (r, k, t)))
             .collect();
         if recorded.is_empty() {
             return Ok(());
         }
-        let all: Vec<_> = recorded.iter().map(|(_, t)| *t).collect();
+        let all: Vec<_> = recorded.iter().map(|(_, _, t)| *t).collect();
         let layout = DiagramLayout::fit(&all, (1600, 900));
-        for (run, ts) in &recorded {
+        for (run, k, ts) in &recorded {
             let name = run.controller.name();
+            let several = run.merges.len() > 1;
+            let at = match run.merges.get(*k) {
+                Some(m) if several => format!(", merge `{}`", m.name),
+                _ => String::new(),
+            };
             let title = format!(
-                "Time-space diagram: {name} controller, SUMO seed {}, {:.0} s",
+                "Time-space diagram: {name} controller{at}, SUMO seed {}, {:.0} s",
                 run.seed, run.simulated
             );
+            let file = match several {
+                true => format!("timespace_{name}_{}.png", k + 1),
+                false => format!("timespace_{name}.png"),
+            };
             let marked = match run.controller {
                 ControllerKind::Sumo => "tracked ego (SUMO drives it)",
                 ControllerKind::Sarl => "driven by the single-agent policy",
                 ControllerKind::Mpg => "driven by the MPG policy",
             };
-            timespace_png(
-                &out.join(format!("timespace_{name}.png")),
-                &layout,
-                ts,
-                &title,
-                marked,
-            )?;
+            timespace_png(&out.join(file), &layout, ts, &title, marked)?;
         }
         eprintln!(
             "cosim: {} time-space diagrams in {:.2} s",

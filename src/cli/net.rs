@@ -4,7 +4,7 @@ use crate::cli::common::{print, usage};
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use mpgdrive::sumo::build::{BuiltForm, MergeNetwork};
-use mpgdrive::sumo::inspect::{find_merges, proposal};
+use mpgdrive::sumo::inspect::{find_merges, proposal, proposals};
 use mpgdrive::sumo::positions::MergeForm;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -26,9 +26,10 @@ enum NetCommand {
         /// Write the proposal of merge number K (see the list) to this file instead of printing.
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Which merge to write with --out (1-based, in the order listed).
-        #[arg(long, default_value_t = 1)]
-        merge: usize,
+        /// Write only merge number K with --out (1-based, in the order listed; default: every
+        /// merge, as `[[merge]]` tables when there are several).
+        #[arg(long)]
+        merge: Option<usize>,
     },
     /// Build a merge network with netconvert from a few parameters (for trying the tool, tests
     /// and network families): merge.net.xml, its plain XML, merge.rou.xml (from/to flows, the
@@ -70,6 +71,12 @@ struct BuildArgs {
     /// Demand duration (s).
     #[arg(long, default_value_t = 600.0)]
     duration: f64,
+    /// On-ramps along the freeway (a corridor; a lane drop has one).
+    #[arg(long, default_value_t = 1)]
+    ramps: u32,
+    /// Freeway between one merge's end and the next ramp (m).
+    #[arg(long, default_value_t = 600.0)]
+    spacing: f64,
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
@@ -88,18 +95,22 @@ fn build(args: BuildArgs) -> Result<ExitCode> {
         lane_flow: args.lane_flow,
         ramp_flow: args.ramp_flow,
         duration: args.duration,
+        ramps: args.ramps,
+        spacing: args.spacing,
     };
     network.validate().map_err(|e| usage(e.to_string()))?;
     let files = network.build(&args.out)?;
     let merges = find_merges(&files.net)?;
-    let merge = merges.first().ok_or_else(|| {
-        anyhow::anyhow!(
-            "{}: net inspect finds no merge in the built network",
-            files.net.display()
-        )
-    })?;
+    if merges.len() != network.ramps as usize {
+        anyhow::bail!(
+            "{}: net inspect finds {} merge(s) in the built network, not {}",
+            files.net.display(),
+            merges.len(),
+            network.ramps
+        );
+    }
     let path = args.out.join("merge.toml");
-    mpgdrive::atomic::write(&path, proposal(merge, &files.net))
+    mpgdrive::atomic::write(&path, proposals(&merges, &files.net))
         .map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))?;
     eprintln!("net: built {} with {}", files.sumocfg.display(), path.display());
     Ok(ExitCode::SUCCESS)
@@ -118,21 +129,24 @@ pub fn run(args: NetArgs) -> Result<ExitCode> {
             net.display()
         )));
     }
-    if !(1..=merges.len()).contains(&merge) {
+    if let Some(k) = merge.filter(|k| !(1..=merges.len()).contains(k)) {
         return Err(usage(format!(
-            "--merge {merge}: the network has {} merge(s)",
+            "--merge {k}: the network has {} merge(s)",
             merges.len()
         )));
     }
     match out {
         Some(path) => {
-            mpgdrive::atomic::write(&path, proposal(&merges[merge - 1], &net))
+            let (text, which) = match merge {
+                Some(k) => (
+                    proposal(&merges[k - 1], &net),
+                    format!("merge {k} of {}", merges.len()),
+                ),
+                None => (proposals(&merges, &net), format!("{} merge(s)", merges.len())),
+            };
+            mpgdrive::atomic::write(&path, text)
                 .map_err(|e| anyhow::anyhow!("writing {}: {e}", path.display()))?;
-            eprintln!(
-                "net: merge {merge} of {} written to {}",
-                merges.len(),
-                path.display()
-            );
+            eprintln!("net: {which} written to {}", path.display());
         }
         None => {
             for (k, m) in merges.iter().enumerate() {

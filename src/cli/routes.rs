@@ -79,7 +79,7 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         .merge
         .clone()
         .unwrap_or_else(|| args.base.with_file_name("merge.toml"));
-    let geometry = MergeGeometry::load(&merge)?;
+    let merges = MergeGeometry::load_all(&merge)?;
     let spec = DemandSpec {
         scales: parse_scales(&args.scales)?,
         ramp_share: args.ramp_share,
@@ -88,7 +88,7 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         seeds: args.seeds,
         duration: args.duration,
     };
-    let manifest = generate(&args.base, &geometry, &spec, &args.out)?;
+    let manifest = generate(&args.base, &merges, &spec, &args.out)?;
     for m in &manifest {
         print(&format!(
             "{} (scale {}{}, seed {}): {} vehicles",

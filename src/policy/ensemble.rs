@@ -80,7 +80,7 @@ impl Combine {
 }
 
 /// Networks of one [`NetSpec`] acting as one policy: the median or the mean of their actions.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct PolicyEnsemble {
     spec: NetSpec,
     members: Vec<Dense>,
@@ -93,7 +93,7 @@ pub struct PolicyEnsemble {
 }
 
 /// The working buffers of [`PolicyEnsemble::actions`].
-#[derive(Debug, Default)]
+#[derive(Debug, Clone, Default)]
 struct Scratch {
     input: Vec<f32>,
     hidden: [Vec<f32>; 2],
@@ -104,7 +104,7 @@ struct Scratch {
 
 /// One member's weights: per layer, `[in][out]` row-major (each input's weights to every output
 /// side by side) and `[out]` biases.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 struct Dense {
     layers: [(Vec<f32>, Vec<f32>); 3],
 }

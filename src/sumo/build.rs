@@ -10,8 +10,10 @@
 //! junction (`out_0`, [`crate::sumo::positions::MergeForm::Junction`]). A lane drop has no ramp: `in` has one lane more
 //! than `out`, and its right lane `in_0` leads into `out_0` beside `in_1` (its vehicles appear
 //! 100 m before its end). Edge priorities make
-//! the ramp (or the dropped lane) the minor link. Routes are `<flow>`s with `from`/`to`, one per
-//! freeway lane (`human`) and one for the ramp (`ctrl`, the type mpgdrive may drive).
+//! the ramp (or the dropped lane) the minor link. With several ramps (a corridor), each merge
+//! is followed by `spacing` metres of freeway (`mid1`, `mid2`, ...) before the next ramp
+//! (`ramp2`, `ramp3`, ...); the last piece is `out`. Routes are `<flow>`s with `from`/`to`, one
+//! per freeway lane (`human`) and one per ramp (`ctrl`, the type mpgdrive may drive).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -50,6 +52,10 @@ pub struct MergeNetwork {
     pub ramp_flow: f64,
     /// Demand duration (s).
     pub duration: f64,
+    /// On-ramps along the freeway (a corridor when more than 1; a lane drop has one).
+    pub ramps: u32,
+    /// Freeway length between one merge's end and the next ramp's gore (m).
+    pub spacing: f64,
 }
 
 /// A built network's files.
@@ -102,6 +108,19 @@ impl MergeNetwork {
                     "{name} {value} must not be negative"
                 )));
             }
+        }
+        if !(1..=8).contains(&self.ramps) || (self.form == BuiltForm::LaneDrop && self.ramps > 1) {
+            return Err(BuildError::Parameter(format!(
+                "ramps {} must be 1 to 8 (1 for a lane drop)",
+                self.ramps
+            )));
+        }
+        if !(self.spacing.is_finite() && self.spacing >= 2.0 * RAMP_RUN) {
+            return Err(BuildError::Parameter(format!(
+                "spacing {} must be at least {} m (a ramp's run)",
+                self.spacing,
+                2.0 * RAMP_RUN
+            )));
         }
         if !(1..=8).contains(&self.lanes) {
             return Err(BuildError::Parameter(format!(
@@ -157,24 +176,91 @@ impl MergeNetwork {
         })
     }
 
-    /// Where the merge's junction is (m along x), and where the freeway ends.
-    fn stations(&self) -> (f64, f64) {
-        let merge_end = self.upstream
-            + match self.form {
-                BuiltForm::Acceleration => self.accel_lane,
-                _ => 0.0,
+    /// The freeway's edges in driving order, and the ramps.
+    fn layout(&self) -> (Vec<Piece>, Vec<Ramp>) {
+        let n = self.lanes;
+        let suffix = |k: u32| {
+            if k == 0 {
+                String::new()
+            } else {
+                (k + 1).to_string()
+            }
+        };
+        let mut pieces = Vec::new();
+        let mut ramps = Vec::new();
+        let mut from = "start".to_owned();
+        let mut piece = "in".to_owned();
+        for k in 0..self.ramps {
+            let s = suffix(k);
+            let gore = format!("gore{s}");
+            let lanes = n + u32::from(self.form == BuiltForm::LaneDrop);
+            pieces.push(Piece {
+                id: piece,
+                from,
+                to: gore.clone(),
+                lanes,
+            });
+            from = gore.clone();
+            if self.form == BuiltForm::Acceleration {
+                let end = format!("accel_end{s}");
+                pieces.push(Piece {
+                    id: format!("acc{s}"),
+                    from,
+                    to: end.clone(),
+                    lanes: n + 1,
+                });
+                from = end;
+            }
+            ramps.push(Ramp {
+                id: format!("ramp{s}"),
+                gore,
+                x: self.gore(k),
+            });
+            piece = if k + 1 == self.ramps {
+                "out".to_owned()
+            } else {
+                format!("mid{}", k + 1)
             };
-        (self.upstream, merge_end + 400.0)
+        }
+        pieces.push(Piece {
+            id: piece,
+            from,
+            to: "end".to_owned(),
+            lanes: n,
+        });
+        (pieces, ramps)
+    }
+
+    /// The acceleration lane's length (m; 0 for the other forms).
+    fn accel(&self) -> f64 {
+        match self.form {
+            BuiltForm::Acceleration => self.accel_lane,
+            _ => 0.0,
+        }
+    }
+
+    /// Where ramp `k`'s gore is (m along x).
+    fn gore(&self, k: u32) -> f64 {
+        self.upstream + f64::from(k) * (self.accel() + self.spacing)
     }
 
     fn nodes(&self) -> String {
-        let (gore, end) = self.stations();
-        let mut nodes = vec![("start", 0.0, 0.0), ("gore", gore, 0.0), ("end", end, 0.0)];
-        if self.form == BuiltForm::Acceleration {
-            nodes.push(("accel_end", gore + self.accel_lane, 0.0));
-        }
-        if self.form != BuiltForm::LaneDrop {
-            nodes.push(("ramp_start", gore - RAMP_RUN, -RAMP_DROP));
+        let accel = self.accel();
+        let last = self.gore(self.ramps - 1) + accel;
+        let mut nodes = vec![
+            ("start".to_owned(), 0.0, 0.0),
+            ("end".to_owned(), last + 400.0, 0.0),
+        ];
+        let (_, ramps) = self.layout();
+        for Ramp { gore, x, .. } in &ramps {
+            nodes.push((gore.clone(), *x, 0.0));
+            let s = gore.trim_start_matches("gore");
+            if self.form == BuiltForm::Acceleration {
+                nodes.push((format!("accel_end{s}"), x + accel, 0.0));
+            }
+            if self.form != BuiltForm::LaneDrop {
+                nodes.push((format!("ramp_start{s}"), x - RAMP_RUN, -RAMP_DROP));
+            }
         }
         let items: String = nodes
             .iter()
@@ -184,48 +270,38 @@ impl MergeNetwork {
     }
 
     fn edges(&self) -> String {
-        let n = self.lanes;
         let edge = |id: &str, from: &str, to: &str, lanes: u32, speed: f64, priority: u32, extra: String| {
             format!(
                 "  <edge id=\"{id}\" from=\"{from}\" to=\"{to}\" numLanes=\"{lanes}\" speed=\"{speed:.2}\" \
                  priority=\"{priority}\" width=\"{LANE_WIDTH}\"{extra}/>\n"
             )
         };
-        let mut edges = String::new();
-        match self.form {
-            BuiltForm::Acceleration => {
-                edges += &edge("in", "start", "gore", n, self.speed, 3, String::new());
-                edges += &edge("acc", "gore", "accel_end", n + 1, self.speed, 3, String::new());
-                edges += &edge("out", "accel_end", "end", n, self.speed, 3, String::new());
-            }
-            BuiltForm::Junction => {
-                edges += &edge("in", "start", "gore", n, self.speed, 3, String::new());
-                edges += &edge("out", "gore", "end", n, self.speed, 3, String::new());
-            }
-            BuiltForm::LaneDrop => {
-                edges += &edge("in", "start", "gore", n + 1, self.speed, 3, String::new());
-                edges += &edge("out", "gore", "end", n, self.speed, 3, String::new());
-            }
-        }
+        let (pieces, ramps) = self.layout();
+        let mut edges: String = pieces
+            .iter()
+            .map(|p| edge(&p.id, &p.from, &p.to, p.lanes, self.speed, 3, String::new()))
+            .collect();
         if self.form != BuiltForm::LaneDrop {
-            let shape = self.ramp_shape();
-            edges += &edge(
-                "ramp",
-                "ramp_start",
-                "gore",
-                1,
-                self.ramp_speed,
-                1,
-                format!(" shape=\"{shape}\""),
-            );
+            for Ramp { id, gore, x } in &ramps {
+                let shape = self.ramp_shape(*x);
+                let start = format!("ramp_start{}", gore.trim_start_matches("gore"));
+                edges += &edge(
+                    id,
+                    &start,
+                    gore,
+                    1,
+                    self.ramp_speed,
+                    1,
+                    format!(" shape=\"{shape}\""),
+                );
+            }
         }
         format!("<edges>\n{edges}</edges>\n")
     }
 
-    /// The ramp's centre line: straight at an angle, or a curve that meets the freeway's
-    /// direction at the gore (points of a cubic Bezier).
-    fn ramp_shape(&self) -> String {
-        let (gore, _) = self.stations();
+    /// The centre line of a ramp whose gore is at `gore`: straight at an angle, or a curve that
+    /// meets the freeway's direction at the gore (points of a cubic Bezier).
+    fn ramp_shape(&self, gore: f64) -> String {
         let (x0, y0) = (gore - RAMP_RUN, -RAMP_DROP);
         // Lanes lie right of an edge's line: the ramp's lane ends just right of the freeway's
         // right lane (in line with the acceleration lane, or beside the junction).
@@ -252,27 +328,38 @@ impl MergeNetwork {
     }
 
     fn connections(&self) -> String {
-        let n = self.lanes;
+        let (pieces, ramps) = self.layout();
         let mut links = Vec::new();
-        match self.form {
-            BuiltForm::Acceleration => {
-                for k in 0..n {
-                    links.push(("in", "acc", k, k + 1));
-                    links.push(("acc", "out", k + 1, k));
+        let into = |gore: &str| {
+            pieces
+                .iter()
+                .position(|p| p.from == gore)
+                .expect("a piece leaves each gore")
+        };
+        for Ramp { id: ramp, gore, .. } in &ramps {
+            let next = into(gore);
+            let (before, after) = (&pieces[next - 1].id, &pieces[next].id);
+            match self.form {
+                BuiltForm::Acceleration => {
+                    let out = &pieces[next + 1].id;
+                    for k in 0..self.lanes {
+                        links.push((before.clone(), after.clone(), k, k + 1));
+                        links.push((after.clone(), out.clone(), k + 1, k));
+                    }
+                    links.push((ramp.clone(), after.clone(), 0, 0));
                 }
-                links.push(("ramp", "acc", 0, 0));
-            }
-            BuiltForm::Junction => {
-                for k in 0..n {
-                    links.push(("in", "out", k, k));
+                BuiltForm::Junction => {
+                    for k in 0..self.lanes {
+                        links.push((before.clone(), after.clone(), k, k));
+                    }
+                    links.push((ramp.clone(), after.clone(), 0, 0));
                 }
-                links.push(("ramp", "out", 0, 0));
-            }
-            BuiltForm::LaneDrop => {
-                for k in 0..n {
-                    links.push(("in", "out", k + 1, k));
+                BuiltForm::LaneDrop => {
+                    for k in 0..self.lanes {
+                        links.push((before.clone(), after.clone(), k + 1, k));
+                    }
+                    links.push((before.clone(), after.clone(), 0, 0));
                 }
-                links.push(("in", "out", 0, 0));
             }
         }
         let items: String = links
@@ -299,18 +386,34 @@ impl MergeNetwork {
         }
         // The dropped lane's vehicles appear DROP_INSERT before its end: SUMO's drivers leave
         // a lane that ends as soon as they can, so only late ones are still on it there.
-        flows += &match self.form {
-            BuiltForm::LaneDrop => {
-                let pos = format!(" departPos=\"{:.1}\"", (self.upstream - DROP_INSERT).max(0.0));
-                flow("ramp".into(), "ctrl", "in", 0, self.ramp_flow, &pos)
+        if self.form == BuiltForm::LaneDrop {
+            let pos = format!(" departPos=\"{:.1}\"", (self.upstream - DROP_INSERT).max(0.0));
+            flows += &flow("ramp".into(), "ctrl", "in", 0, self.ramp_flow, &pos);
+        } else {
+            for Ramp { id, .. } in self.layout().1 {
+                flows += &flow(id.clone(), "ctrl", &id, 0, self.ramp_flow, "");
             }
-            _ => flow("ramp".into(), "ctrl", "ramp", 0, self.ramp_flow, ""),
-        };
+        }
         format!(
             "<routes>\n  <vType id=\"human\" length=\"5\" minGap=\"2\" accel=\"2.6\" decel=\"4.5\" sigma=\"0.5\"/>\n  \
              <vType id=\"ctrl\" length=\"5\" minGap=\"2\" accel=\"2.6\" decel=\"4.5\" sigma=\"0.5\"/>\n{flows}</routes>\n"
         )
     }
+}
+
+/// One freeway edge of a built network.
+struct Piece {
+    id: String,
+    from: String,
+    to: String,
+    lanes: u32,
+}
+
+/// One on-ramp of a built network: its edge, the node it ends at, and that node's x (m).
+struct Ramp {
+    id: String,
+    gore: String,
+    x: f64,
 }
 
 /// A lane drop's vehicles on the dropped lane appear this far before its end (m).

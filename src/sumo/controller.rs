@@ -377,6 +377,13 @@ impl Controller {
 
     /// One control step; call it after each `sumo.step()`.
     pub fn step(&mut self, sumo: &mut Sumo) -> Result<(), SumoError> {
+        self.step_sharing(sumo, &mut HashSet::new())
+    }
+
+    /// One control step of one of several controllers of a simulation (one per merge of the
+    /// network, each stepped in turn): the vehicles in `taken` were driven this step by an
+    /// earlier one and are left to it; the ones this controller drives are added.
+    pub fn step_sharing(&mut self, sumo: &mut Sumo, taken: &mut HashSet<String>) -> Result<(), SumoError> {
         let started = Instant::now();
         let time = sumo.time()?;
         let known_collisions = self.collisions.len();
@@ -420,6 +427,9 @@ impl Controller {
         let mut applied = HashMap::new();
         for (car, accel) in commands {
             let c = &cars[car];
+            if taken.contains(&c.id) {
+                continue;
+            }
             if self.controlled.insert(c.id.clone()) {
                 sumo.set_speed_mode(&c.id, self.speed_mode(c))?;
                 let mode = match c.ramp_lane {
@@ -456,9 +466,13 @@ impl Controller {
             self.record_step(time, &cars, &marked, known_collisions);
         }
         let released: Vec<String> = self.controlled.difference(&driven).cloned().collect();
+        taken.extend(driven);
         for id in released {
             self.controlled.remove(&id);
             self.commanded.remove(&id);
+            if taken.contains(&id) {
+                continue; // another merge's controller drives it now
+            }
             // A vehicle removed by someone else (another TraCI client) refuses the first call:
             // there is nothing left to hand back.
             if !gone.contains(&id) && sumo.set_speed(&id, -1.0).is_ok() {
@@ -1134,6 +1148,7 @@ mod tests {
             Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
                 .unwrap();
         let geometry = MergeGeometry {
+            name: None,
             conflict_point: 180.0,
             control_from: 60.0,
             release_after: 50.0,
@@ -1362,6 +1377,7 @@ mod tests {
         let mut c = Controller::new(
             config,
             MergeGeometry {
+                name: None,
                 conflict_point: 300.0,
                 ..c.geometry.clone()
             },

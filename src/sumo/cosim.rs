@@ -21,7 +21,7 @@ use crate::sumo::positions::LanePositions;
 use crate::sumo::profile::{self, BandSpeed, SpeedBands};
 use crate::sumo::{Backend, Sumo, SumoError};
 use serde::Serialize;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -48,13 +48,11 @@ pub struct CosimSettings {
     pub sumocfg: PathBuf,
     /// Route files replacing the configuration's (SUMO's `--route-files`), if any.
     pub route_files: Option<PathBuf>,
-    /// Merge geometry of the network.
-    pub geometry: MergeGeometry,
+    /// The network's merges: each geometry with where its lanes lie along the road
+    /// ([`crate::sumo::inputs::check_geometry`]). Each has its own controller, egos and games.
+    pub merges: Vec<(MergeGeometry, LanePositions)>,
     /// Where the geometry came from (for messages).
     pub geometry_path: PathBuf,
-    /// Where the geometry's lanes lie along the road
-    /// ([`crate::sumo::inputs::check_geometry`]).
-    pub positions: LanePositions,
     /// SUMO's random seed.
     pub seed: u64,
     /// Simulated duration (s).
@@ -128,6 +126,24 @@ pub struct EgoResult {
     pub travel_time: Option<f64>,
     /// Time lost to driving below the ideal speed (s).
     pub time_loss: Option<f64>,
+    /// The merge it was an ego of (index into [`CosimSettings::merges`]).
+    pub merge: usize,
+}
+
+/// One merge's share of a run (a network with several merges reports each).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MergeRun {
+    /// The merge's name ([`MergeGeometry::label`]).
+    pub name: String,
+    /// Its egos, finished or not.
+    pub egos: usize,
+    /// Averages over its finished egos.
+    pub summary: Summary,
+    /// SUMO collisions involving a vehicle its controller drove.
+    pub controlled_collisions: usize,
+    /// The desired speed a traffic policy observed there (m/s; none for Table I policies and
+    /// `sumo`).
+    pub desired_speed: Option<f64>,
 }
 
 /// One controller's run.
@@ -176,15 +192,18 @@ pub struct ControllerRun {
     /// lane-change modes (`sumo`: none applies).
     pub shields: Shields,
     /// The desired speed a traffic policy observed (m/s): the speed limit of the lane egos
-    /// merge into; none for Table I policies and `sumo`.
+    /// merge into (at the first merge; [`MergeRun`] has each); none for Table I policies and
+    /// `sumo`.
     pub desired_speed: Option<f64>,
     /// Wall time in SUMO's step (us per step).
     pub sumo_us_per_step: f64,
     /// Wall time in the controller (us per step).
     pub controller_us_per_step: f64,
-    /// The run's time-space record, with SUMO's SSM conflicts marked (when asked for).
+    /// Each merge's share of the run, in the order of [`CosimSettings::merges`].
+    pub merges: Vec<MergeRun>,
+    /// Each merge's time-space record, with SUMO's SSM conflicts marked (when asked for).
     #[serde(skip)]
-    pub timespace: Option<TimeSpace>,
+    pub timespace: Vec<TimeSpace>,
     /// SUMO's SSM output file and its text as the run ended ([`restore_ssm_outputs`]).
     #[serde(skip)]
     pub ssm_output: Option<(PathBuf, String)>,
@@ -289,45 +308,74 @@ pub fn run_controller(
             config: config.sim.dt,
         });
     }
-    settings
-        .geometry
-        .check_lanes(&sumo.lane_ids()?)
-        .map_err(|source| CosimError::Geometry {
-            path: settings.geometry_path.display().to_string(),
-            source,
-        })?;
-    let mut controller = Controller::new(
-        config.clone(),
-        settings.geometry.clone(),
-        settings.positions.clone(),
-        kind,
-        policy,
-        settings.modes,
-    );
-    if settings.timespace {
-        controller.record_timespace();
-    }
-    if !matches!(settings.launch, Launch::Libsumo) {
-        controller.colour_driven(); // someone may be watching in sumo-gui
+    let lanes = sumo.lane_ids()?;
+    let mut controllers = Vec::with_capacity(settings.merges.len());
+    for (geometry, positions) in &settings.merges {
+        geometry
+            .check_lanes(&lanes)
+            .map_err(|source| CosimError::Geometry {
+                path: settings.geometry_path.display().to_string(),
+                source,
+            })?;
+        let mut controller = Controller::new(
+            config.clone(),
+            geometry.clone(),
+            positions.clone(),
+            kind,
+            policy.clone(),
+            settings.modes,
+        );
+        if settings.timespace {
+            controller.record_timespace();
+        }
+        if !matches!(settings.launch, Launch::Libsumo) {
+            controller.colour_driven(); // someone may be watching in sumo-gui
+        }
+        controllers.push(controller);
     }
     let mut sumo_us = 0.0;
     let mut steps = 0u64;
+    let mut taken = HashSet::new();
     while more_to_run(&sumo, settings.end, dt)? {
         let t0 = Instant::now();
         sumo.step()?;
         sumo_us += t0.elapsed().as_secs_f64() * 1e6;
-        controller.step(&mut sumo)?;
+        taken.clear();
+        for controller in &mut controllers {
+            controller.step_sharing(&mut sumo, &mut taken)?;
+        }
         steps += 1;
     }
     let simulated = sumo.time()?;
     sumo.close()?;
-    let timing = controller.timing();
-    let desired_speed = controller.desired_speed();
-    let collisions = controller.collisions.clone();
-    let speed_overrides = controller.overridden;
-    let lane_speed = controller.lane_speed.bands();
-    let mut timespace = controller.take_timespace();
-    let records = controller.finish();
+    let controller_us: f64 = controllers.iter().map(|c| c.timing().total_us).sum();
+    let desired_speed = controllers.first().and_then(Controller::desired_speed);
+    let mut lane_speed = SpeedBands::default();
+    let mut collisions: Vec<CollisionEvent> = Vec::new();
+    let mut timespace = Vec::new();
+    let mut records = Vec::new();
+    let mut merges = Vec::new();
+    let mut speed_overrides = 0;
+    for (k, mut controller) in controllers.into_iter().enumerate() {
+        lane_speed.add(&controller.lane_speed);
+        speed_overrides += controller.overridden;
+        // Every controller sees SUMO's collisions: one event, controlled if any drove a party.
+        for event in &controller.collisions {
+            let same = |c: &&mut CollisionEvent| {
+                (c.time, &c.collider, &c.victim) == (event.time, &event.collider, &event.victim)
+            };
+            match collisions.iter_mut().find(same) {
+                Some(known) => known.controlled |= event.controlled,
+                None => collisions.push(event.clone()),
+            }
+        }
+        merges.push((
+            controller.collisions.iter().filter(|c| c.controlled).count(),
+            controller.desired_speed(),
+        ));
+        timespace.extend(controller.take_timespace());
+        records.extend(controller.finish().into_iter().map(|r| (k, r)));
+    }
     let ssm_output = match settings.launch {
         Launch::Attach { .. } => None,
         _ => Some((ssm.clone(), read_xml(&ssm)?)),
@@ -337,8 +385,7 @@ pub fn run_controller(
         Launch::Attach { .. } => (SsmRecord::default(), HashMap::new()),
         _ => (read_ssm(&ssm)?, read_tripinfo(&tripinfo)?),
     };
-
-    if let Some(ts) = timespace.as_mut() {
+    for ts in &mut timespace {
         let marks: Vec<_> = ssm.worst.iter().filter_map(|(id, t)| ts.locate(id, *t)).collect();
         ts.conflicts = marks;
     }
@@ -354,10 +401,28 @@ pub fn run_controller(
         collisions,
         speed_overrides,
         per_step(sumo_us),
-        per_step(timing.total_us),
+        per_step(controller_us),
     );
+    run.merges = settings
+        .merges
+        .iter()
+        .zip(merges)
+        .enumerate()
+        .map(|(k, ((geometry, _), (controlled_collisions, desired_speed)))| {
+            let mine: Vec<&EgoResult> = run.egos.iter().filter(|e| e.merge == k).collect();
+            let finished: Vec<EpisodeMetrics> =
+                mine.iter().filter(|e| e.finished).map(|e| e.metrics).collect();
+            MergeRun {
+                name: geometry.label(),
+                egos: mine.len(),
+                summary: Summary::of(&finished),
+                controlled_collisions,
+                desired_speed,
+            }
+        })
+        .collect();
     run.timespace = timespace;
-    run.lane_speed_by_position = lane_speed;
+    run.lane_speed_by_position = lane_speed.bands();
     run.ssm_output = ssm_output;
     run.sumo_version = sumo_version;
     run.desired_speed = desired_speed;
@@ -408,7 +473,7 @@ fn summarise(
     seed: u64,
     simulated: f64,
     steps: u64,
-    records: &[EgoRecord],
+    records: &[(usize, EgoRecord)],
     ssm: &HashMap<String, SsmExtremes>,
     trips: &HashMap<String, (f64, f64)>,
     collisions: Vec<CollisionEvent>,
@@ -418,7 +483,7 @@ fn summarise(
 ) -> ControllerRun {
     let egos: Vec<EgoResult> = records
         .iter()
-        .map(|r| {
+        .map(|(merge, r)| {
             let (ttc, drac) = ssm.get(&r.id).copied().unwrap_or((None, None));
             let trip = trips.get(&r.id);
             EgoResult {
@@ -431,12 +496,13 @@ fn summarise(
                 ssm_max_drac: drac,
                 travel_time: trip.map(|t| t.0),
                 time_loss: trip.map(|t| t.1),
+                merge: *merge,
             }
         })
         .collect();
     let finished: Vec<&EgoResult> = egos.iter().filter(|e| e.finished).collect();
     let mut bands = SpeedBands::default();
-    for r in records.iter().filter(|r| r.finished()) {
+    for (_, r) in records.iter().filter(|(_, r)| r.finished()) {
         bands.add(&r.speed_bands);
     }
     let metrics: Vec<EpisodeMetrics> = finished.iter().map(|e| e.metrics).collect();
@@ -473,7 +539,8 @@ fn summarise(
         lane_speed_by_position: Vec::new(),
         sumo_us_per_step,
         controller_us_per_step,
-        timespace: None,
+        merges: Vec::new(),
+        timespace: Vec::new(),
         ssm_output: None,
         shields: Shields::default(),
     }
@@ -625,6 +692,23 @@ pub fn markdown(runs: &[ControllerRun]) -> String {
     row("Commanded speeds SUMO did not apply (steps)", &|r| {
         r.speed_overrides.to_string()
     });
+    if let Some(first) = runs.iter().find(|r| r.merges.len() > 1) {
+        s += "\nEach merge: egos finished / all, collisions with a controlled vehicle, mean speed of the finished egos (m/s):\n\n| Merge |";
+        for r in runs {
+            s += &format!(" {} |", r.controller.name());
+        }
+        s += &format!("\n|---|{}\n", "---|".repeat(runs.len()));
+        for (k, merge) in first.merges.iter().enumerate() {
+            s += &format!("| {} |", merge.name);
+            for m in runs.iter().filter_map(|r| r.merges.get(k)) {
+                s += &format!(
+                    " {} / {}, {}, {:.2} |",
+                    m.summary.episodes, m.egos, m.controlled_collisions, m.summary.mean_speed
+                );
+            }
+            s += "\n";
+        }
+    }
     let names: Vec<&str> = runs.iter().map(|r| r.controller.name()).collect();
     let profiles: Vec<&[BandSpeed]> = runs.iter().map(|r| r.speed_by_position.as_slice()).collect();
     s +=
@@ -649,7 +733,7 @@ fn policy_cell(seeds: &[u64], ensemble: Option<Combine>) -> String {
 /// Per-ego CSV over all runs.
 pub fn egos_csv(runs: &[ControllerRun]) -> String {
     let mut s = format!(
-        "controller,seed,id,start,end,finished,collision,failure,{},ssm_min_ttc,ssm_max_drac,travel_time,time_loss\n",
+        "controller,seed,id,start,end,finished,collision,failure,{},ssm_min_ttc,ssm_max_drac,travel_time,time_loss,merge\n",
         EpisodeMetrics::CSV_MOTION
     );
     let o = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
@@ -657,7 +741,7 @@ pub fn egos_csv(runs: &[ControllerRun]) -> String {
         for e in &r.egos {
             let m = &e.metrics;
             s += &format!(
-                "{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
                 r.controller.name(),
                 r.seed,
                 e.id,
@@ -670,7 +754,8 @@ pub fn egos_csv(runs: &[ControllerRun]) -> String {
                 o(e.ssm_min_ttc),
                 o(e.ssm_max_drac),
                 o(e.travel_time),
-                o(e.time_loss)
+                o(e.time_loss),
+                r.merges.get(e.merge).map_or("", |m| m.name.as_str())
             );
         }
     }

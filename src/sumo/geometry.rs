@@ -5,7 +5,7 @@
 //! lane starts at `target_start` (0 unless set), so any network shape works: curved ramps,
 //! rotated or bending freeways.
 
-use crate::config::{ConfigError, check, finite, load_toml, non_negative};
+use crate::config::{ConfigError, check, finite, load_toml, non_negative, parse_toml};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -21,10 +21,13 @@ pub enum PlayerControl {
     Controllable,
 }
 
-/// The contents of `merge.toml`.
+/// One merge of `merge.toml`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MergeGeometry {
+    /// A name for results and diagrams (default: the first ramp lane's edge).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     /// Position of the conflict point (m): on the acceleration lane.
     pub conflict_point: f64,
     /// A controllable ramp vehicle becomes an ego once its centre passes this position (m).
@@ -58,12 +61,67 @@ pub struct MergeGeometry {
     pub players: PlayerControl,
 }
 
+/// A `merge.toml` with several merges: `[[merge]]` tables, each one merge.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MergeList {
+    merge: Vec<MergeGeometry>,
+}
+
 impl MergeGeometry {
-    /// Reads and checks a `merge.toml`.
+    /// Reads and checks a `merge.toml` of one merge (its keys at the top level).
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
         let g: MergeGeometry = load_toml(path)?;
         g.validate()?;
         Ok(g)
+    }
+
+    /// Reads and checks a `merge.toml`: one merge (keys at the top level) or any number of
+    /// `[[merge]]` tables. Two merges may not share a ramp lane, nor a name.
+    pub fn load_all(path: &Path) -> Result<Vec<Self>, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        let origin = path.display().to_string();
+        let several = text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("merge"));
+        let merges = if several {
+            parse_toml::<MergeList>(&text, &origin)?.merge
+        } else {
+            vec![parse_toml::<MergeGeometry>(&text, &origin)?]
+        };
+        check("merge", !merges.is_empty(), "lists no merge".into())?;
+        for (k, g) in merges.iter().enumerate() {
+            g.validate().map_err(|e| match (several, e) {
+                (true, ConfigError::Invalid { key, message }) => ConfigError::Invalid {
+                    key: format!("merge[{}].{key}", k + 1),
+                    message,
+                },
+                (_, e) => e,
+            })?;
+            for (j, h) in merges[..k].iter().enumerate() {
+                if let Some(lane) = g.ramp_lanes.iter().find(|l| h.is_ramp(l)) {
+                    return Err(ConfigError::Invalid {
+                        key: format!("merge[{}].ramp_lanes", k + 1),
+                        message: format!("lane `{lane}` is a ramp lane of merge {} too", j + 1),
+                    });
+                }
+                check(
+                    &format!("merge[{}].name", k + 1),
+                    g.label() != h.label(),
+                    format!("`{}` names merge {} too", g.label(), j + 1),
+                )?;
+            }
+        }
+        Ok(merges)
+    }
+
+    /// The merge's name in results: `name`, or the edge of its first ramp lane.
+    pub fn label(&self) -> String {
+        self.name.clone().unwrap_or_else(|| {
+            let first = self.ramp_lanes.first().map_or("", String::as_str);
+            split_lane_id(first).map_or(first, |(edge, _)| edge).to_owned()
+        })
     }
 
     /// Range checks that need no network.
@@ -148,4 +206,76 @@ impl MergeGeometry {
 pub fn split_lane_id(lane: &str) -> Option<(&str, i32)> {
     let (edge, index) = lane.rsplit_once('_')?;
     Some((edge, index.parse().ok()?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ONE: &str = "conflict_point = 180.0\ncontrol_from = 60.0\nrelease_after = 50.0\n\
+        ramp_lanes = [\"ramp_0\"]\ntarget_lanes = [\"main_0\", \"out_0\"]\n\
+        controllable_types = [\"ctrl\"]\nplayers = \"controllable\"\n";
+
+    fn load(text: &str) -> Result<Vec<MergeGeometry>, ConfigError> {
+        static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let k = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir = crate::atomic::test_dir(&format!("merge-toml-{k}"));
+        let path = dir.join("merge.toml");
+        std::fs::write(&path, text).unwrap();
+        let loaded = MergeGeometry::load_all(&path);
+        std::fs::remove_dir_all(dir).unwrap();
+        loaded
+    }
+
+    #[test]
+    fn a_merge_toml_holds_one_merge_or_several_tables() {
+        let one = load(ONE).unwrap();
+        assert_eq!(one.len(), 1);
+        assert_eq!(one[0].label(), "ramp");
+        let other = ONE.replace("ramp_0", "ramp2_0").replace("180.0", "880.0");
+        let two = load(&format!(
+            "[[merge]]\n{ONE}\n[[merge]]\nname = \"second\"\n{other}"
+        ))
+        .unwrap();
+        assert_eq!(two.len(), 2);
+        assert_eq!(
+            (two[0].label(), two[1].label()),
+            ("ramp".to_owned(), "second".to_owned())
+        );
+        assert_eq!(two[1].conflict_point, 880.0);
+        assert_eq!(two[0], one[0]);
+    }
+
+    #[test]
+    fn merges_that_share_a_ramp_lane_or_a_name_or_break_a_rule_are_refused() {
+        let err = load(&format!("[[merge]]\n{ONE}\n[[merge]]\n{ONE}"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("merge[2].ramp_lanes") && err.contains("`ramp_0`"),
+            "{err}"
+        );
+        let other = ONE.replace("ramp_0", "ramp2_0");
+        let err = load(&format!(
+            "[[merge]]\nname = \"a\"\n{ONE}\n[[merge]]\nname = \"a\"\n{other}"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("merge[2].name"), "{err}");
+        let bad = other.replace("control_from = 60.0", "control_from = 500.0");
+        let err = load(&format!("[[merge]]\n{ONE}\n[[merge]]\n{bad}"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("merge[2].control_from"), "{err}");
+        let err = load(&format!("[[merge]]\n{ONE}\nspeed = 3\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("speed"), "{err}");
+        assert!(
+            load("merge = []\n")
+                .unwrap_err()
+                .to_string()
+                .contains("lists no merge")
+        );
+    }
 }

@@ -357,17 +357,29 @@ pub fn check_routes(files: &[PathBuf], net: Option<&Path>) -> Result<bool, Input
     }))
 }
 
-/// Every check before a co-simulation, given the configuration's files: the geometry against
-/// its network, and the route files (`route_files`, a comma-separated list as SUMO takes it,
-/// replacing the configuration's when given). Returns where the geometry's lanes lie along
-/// the road, and whether the inputs equip any vehicle with the SSM device.
+/// Every check before a co-simulation, given the configuration's files: each merge's geometry
+/// against its network, and the route files (`route_files`, a comma-separated list as SUMO
+/// takes it, replacing the configuration's when given). Returns where each merge's lanes lie
+/// along the road, and whether the inputs equip any vehicle with the SSM device.
 pub fn check_inputs(
     files: &ConfigFiles,
     route_files: Option<&Path>,
-    geometry: &MergeGeometry,
+    merges: &[MergeGeometry],
     geometry_path: &Path,
-) -> Result<(LanePositions, bool), InputError> {
-    let positions = check_geometry(geometry, geometry_path, &files.net)?;
+) -> Result<(Vec<LanePositions>, bool), InputError> {
+    let positions = merges
+        .iter()
+        .enumerate()
+        .map(|(k, g)| {
+            check_geometry(g, geometry_path, &files.net).map_err(|e| match e {
+                InputError::Content { path, message } if merges.len() > 1 => InputError::Content {
+                    path,
+                    message: format!("merge {} (`{}`): {message}", k + 1, g.label()),
+                },
+                e => e,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let mut routes = match route_files {
         Some(r) => r
             .to_string_lossy()

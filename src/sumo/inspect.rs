@@ -16,6 +16,7 @@
 //! target lane.
 
 use crate::sumo::LanePositions;
+use crate::sumo::geometry::split_lane_id;
 use crate::sumo::inputs::{InputError, with_network};
 use crate::sumo::positions::{Link, MergeForm, connections_of};
 use std::collections::BTreeMap;
@@ -208,8 +209,11 @@ pub const LANE_MARGIN: f64 = 10.0;
 /// ramp lane, rounded down to 0.1 m so that it stays on the lane), egos picked up 120 m before
 /// it, no `merge_from`.
 pub fn proposal(merge: &Merge, net: &Path) -> String {
-    let ramp = quoted(&merge.ramp_lanes);
-    let target = quoted(&merge.target_lanes);
+    header(net) + &keys_of(merge)
+}
+
+/// The keys of `merge`'s proposal (see [`proposal`]).
+fn keys_of(merge: &Merge) -> String {
     let last = merge.ramp_lanes.last().map_or("", String::as_str);
     let (x_c, where_, merge_from) = match merge.form {
         MergeForm::AccelerationLane => {
@@ -246,12 +250,41 @@ pub fn proposal(merge: &Merge, net: &Path) -> String {
             .min(merge.lane_start - LANE_MARGIN)
             .max(merge.ramp_start);
     }
+    keys(merge, x_c, &where_, control_from, &merge_from)
+}
+
+/// A commented `merge.toml` for every merge of `merges` in the network `net`: the single form
+/// for one, `[[merge]]` tables (each named after its ramp's first edge) for several.
+pub fn proposals(merges: &[Merge], net: &Path) -> String {
+    if let [one] = merges {
+        return proposal(one, net);
+    }
+    let mut text = header(net);
+    for m in merges {
+        let first = m.ramp_lanes.first().map_or("", String::as_str);
+        let name = split_lane_id(first).map_or(first, |(edge, _)| edge);
+        text += &format!("\n[[merge]]\nname = \"{name}\"\n{}", keys_of(m));
+    }
+    text
+}
+
+/// The comment that opens a proposal.
+fn header(net: &Path) -> String {
     format!(
-        "# merge.toml proposed by `mpgdrive net inspect {net}`: check it, then save it next to the\n\
+        "# merge.toml proposed by `mpgdrive net inspect {}`: check it, then save it next to the\n\
          # .sumocfg (cosim and batch read it from there, or from --merge). Units: m. Positions are\n\
          # distances driven along the lanes, from 0 at the start of the first target lane; a ramp\n\
-         # vehicle's position is the target-lane position it reaches by driving on.\n\
-         target_start = 0.0               # the position of the start of target_lanes' first lane\n\
+         # vehicle's position is the target-lane position it reaches by driving on.\n",
+        net.display()
+    )
+}
+
+/// The keys of one merge's proposal, commented.
+fn keys(merge: &Merge, x_c: f64, where_: &str, control_from: f64, merge_from: &str) -> String {
+    let ramp = quoted(&merge.ramp_lanes);
+    let target = quoted(&merge.target_lanes);
+    format!(
+        "target_start = 0.0               # the position of the start of target_lanes' first lane\n\
          conflict_point = {x_c:.1}          # {where_}\n\
          control_from = {control_from:.1}            # egos are picked up here: 120 m before x_c (training starts them 40-120 m\n\
          #                                  before), or 10 m before an acceleration lane if that is earlier, and not\n\
@@ -261,7 +294,6 @@ pub fn proposal(merge: &Merge, net: &Path) -> String {
          ramp_lanes = {ramp}   # in driving order, the lane that ends last\n\
          target_lanes = {target}   # in driving order\n\
          controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
-         players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n",
-        net = net.display(),
+         players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n"
     )
 }
