@@ -56,6 +56,16 @@ pub fn cosim_json(args: &[&str], sumocfg: &Path, out: &Path) -> (serde_json::Val
     (serde_json::from_slice(&output.stdout).unwrap(), stderr)
 }
 
+/// The SUMO collisions of a cosim run (`cosim.json`) that involve a controlled vehicle.
+pub fn controlled_collisions(run: &serde_json::Value) -> usize {
+    run["collisions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["controlled"] == true)
+        .count()
+}
+
 /// A fresh, empty directory for a test under Cargo's scratch directory (target/tmp), so a
 /// run leaves one set, which the next run replaces and `cargo clean` removes.
 pub fn fresh_dir(name: &str) -> std::path::PathBuf {

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{bin, fresh_dir};
+use common::{bin, controlled_collisions, fresh_dir};
 use std::path::Path;
 use std::process::Command;
 
@@ -151,13 +151,11 @@ fn a_curved_ramp_network_runs_every_controller_with_the_proposed_merge_toml() {
         let expected = if c == "sumo" { None } else { Some(18.0) };
         assert_eq!(run["desired_speed"].as_f64(), expected, "{c}");
         assert_eq!(run["summary"]["collisions"], 0, "{c}");
-        let controlled = run["collisions"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|e| e["controlled"] == true)
-            .count();
-        assert_eq!(controlled, 0, "{c}: collisions involving a controlled vehicle");
+        assert_eq!(
+            controlled_collisions(run),
+            0,
+            "{c}: collisions involving a controlled vehicle"
+        );
         // SSM metrics: cosim equipped every vehicle (the sumocfg has no device) and read the
         // log back; each ego carries its SSM fields.
         let ssm = std::fs::read_to_string(dir.join(format!("out/ssm-{c}.xml"))).unwrap();

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::bin;
+use common::{bin, controlled_collisions};
 use mpgdrive::sumo::inspect::find_merges;
 use mpgdrive::sumo::positions::MergeForm;
 use std::path::{Path, PathBuf};
@@ -32,11 +32,11 @@ impl Drop for Outside {
     }
 }
 
-/// `mpgdrive net build ARGS --out DIR`.
-fn build(dir: &Path, args: &[&str]) {
+/// `mpgdrive net build ARGS --out DIR` (ARGS separated by spaces).
+fn build(dir: &Path, args: &str) {
     let out = bin()
         .args(["net", "build"])
-        .args(args)
+        .args(args.split_whitespace())
         .arg("--out")
         .arg(dir)
         .output()
@@ -71,64 +71,25 @@ fn cosim_in(dir: &Path, cache: &Path, args: &[&str]) -> serde_json::Value {
 fn every_merge_form_is_found_and_driven_without_a_controlled_collision() {
     let root = Outside::new("zoo");
     let cache = root.0.join("cache");
-    let cases: [(&str, &[&str], MergeForm); 4] = [
+    let cases: [(&str, &str, MergeForm); 4] = [
         (
             "junction-1",
-            &[
-                "--form",
-                "junction",
-                "--lanes",
-                "1",
-                "--speed",
-                "30",
-                "--lane-flow",
-                "300",
-            ],
+            "--form junction --lanes 1 --speed 30 --lane-flow 300",
             MergeForm::Junction,
         ),
         (
             "junction-3-curved",
-            &[
-                "--form",
-                "junction",
-                "--lanes",
-                "3",
-                "--speed",
-                "30",
-                "--lane-flow",
-                "200",
-                "--curved",
-            ],
+            "--form junction --lanes 3 --speed 30 --lane-flow 200 --curved",
             MergeForm::Junction,
         ),
         (
             "lane-drop",
-            &[
-                "--form",
-                "lane-drop",
-                "--lanes",
-                "2",
-                "--speed",
-                "25",
-                "--lane-flow",
-                "500",
-            ],
+            "--form lane-drop --lanes 2 --speed 25 --lane-flow 500",
             MergeForm::Junction,
         ),
         (
             "acceleration",
-            &[
-                "--form",
-                "acceleration",
-                "--lanes",
-                "1",
-                "--speed",
-                "33",
-                "--accel-lane",
-                "150",
-                "--lane-flow",
-                "1200",
-            ],
+            "--form acceleration --lanes 1 --speed 33 --accel-lane 150 --lane-flow 1200",
             MergeForm::AccelerationLane,
         ),
     ];
@@ -163,13 +124,7 @@ fn every_merge_form_is_found_and_driven_without_a_controlled_collision() {
                 "{who}: {finished} of {} egos finished",
                 egos.len()
             );
-            let controlled = run["collisions"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .filter(|c| c["controlled"] == true)
-                .count();
-            assert_eq!(controlled, 0, "{who}");
+            assert_eq!(controlled_collisions(run), 0, "{who}");
         }
     }
     // The bundled policies were unpacked into the cache given, once.
@@ -183,19 +138,7 @@ fn at_a_junction_merge_the_entry_rule_alone_keeps_the_policy_safe() {
     // the entry rule at the stop line decides when an ego enters, on a busy 1-lane freeway.
     let root = Outside::new("junction-exact");
     let dir = root.0.join("net");
-    build(
-        &dir,
-        &[
-            "--form",
-            "junction",
-            "--lanes",
-            "1",
-            "--speed",
-            "30",
-            "--lane-flow",
-            "700",
-        ],
-    );
+    build(&dir, "--form junction --lanes 1 --speed 30 --lane-flow 700");
     let runs = cosim_in(
         &dir,
         &root.0.join("cache"),
@@ -218,19 +161,7 @@ fn route_files_as_users_write_them_run_in_cosim_routes_and_batch() {
     // a route distribution. `routes --base` scales both; cosim and batch run them.
     let root = Outside::new("user-routes");
     let dir = root.0.join("net");
-    build(
-        &dir,
-        &[
-            "--form",
-            "junction",
-            "--lanes",
-            "1",
-            "--speed",
-            "25",
-            "--lane-flow",
-            "400",
-        ],
-    );
+    build(&dir, "--form junction --lanes 1 --speed 25 --lane-flow 400");
     let types = "<additional>\n  <vType id=\"human\" length=\"5\" minGap=\"2\" sigma=\"0.5\"/>\n  \
                  <vType id=\"ctrl\" length=\"5\" minGap=\"2\" sigma=\"0.5\"/>\n</additional>\n";
     std::fs::write(dir.join("types.add.xml"), types).unwrap();
@@ -320,20 +251,7 @@ fn a_corridor_with_three_on_ramps_runs_from_one_merge_toml_and_reports_each_merg
     let dir = root.0.join("net");
     build(
         &dir,
-        &[
-            "--form",
-            "acceleration",
-            "--ramps",
-            "3",
-            "--lanes",
-            "2",
-            "--speed",
-            "30",
-            "--lane-flow",
-            "600",
-            "--ramp-flow",
-            "300",
-        ],
+        "--form acceleration --ramps 3 --lanes 2 --speed 30 --lane-flow 600 --ramp-flow 300",
     );
     // `net inspect --out` writes every merge it finds, as [[merge]] tables.
     let out = bin()
@@ -361,13 +279,7 @@ fn a_corridor_with_three_on_ramps_runs_from_one_merge_toml_and_reports_each_merg
             assert_eq!(m["egos"], mine, "{who}");
             assert_eq!(m["controlled_collisions"], 0, "{who}");
         }
-        let controlled = run["collisions"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .filter(|c| c["controlled"] == true)
-            .count();
-        assert_eq!(controlled, 0, "{who}");
+        assert_eq!(controlled_collisions(run), 0, "{who}");
     }
     // The markdown has a row per merge.
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"))
