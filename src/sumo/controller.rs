@@ -887,8 +887,6 @@ impl Controller {
                         );
                     }
                 }
-                // Before the conflict point a ramp vehicle the scenes count in the target lane
-                // (scene_entry) is still on the ramp for the merge gate, when it is on.
                 let car = &cars[j];
                 if let Some(stop) = self.stop_line_bound(cars, j, &rules) {
                     a = clip_action(
@@ -900,6 +898,8 @@ impl Controller {
                         rules.dt,
                     );
                 }
+                // Before the conflict point a ramp vehicle the scenes count in the target lane
+                // (scene_entry) is still on the ramp for the merge gate, when it is on.
                 if rules.merge_gate && self.config.sim.feasibility && car.is_waiting() && car.x < x_c {
                     let lane = ego_and_target_lane(cars, j, lane_width);
                     if gate_holds(&lane, 0, &rules.gate) {
