@@ -8,7 +8,8 @@
 //!   lane there (its link is minor where the other's is major; with equal links, a zipper or a
 //!   lane drop into one lane, the lane of the lower-priority edge, then of the edge with fewer
 //!   lanes, then the right one). That is the paper's forced merge: the ramp lane ends at the
-//!   conflict point.
+//!   conflict point. A lane that turns onto several roads, or whose link has a traffic light,
+//!   approaches an intersection and is not a merge.
 //!
 //! The ramp lanes are the last ramp lane and the lanes leading into it, followed back through
 //! the connections; the target lanes are the target lane and the lanes it continues from and
@@ -132,8 +133,11 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         let Some(first) = out.iter().min_by_key(|l| lanes[&l.to].index) else {
             continue;
         };
-        if out.iter().any(|l| lanes[&l.to].edge != lanes[&first.to].edge) {
-            continue; // an intersection's approach: it turns onto several roads
+        if out
+            .iter()
+            .any(|l| l.signalised || lanes[&l.to].edge != lanes[&first.to].edge)
+        {
+            continue; // an intersection's approach: it turns onto several roads, or has a signal
         }
         let target = &first.to;
         let rank = |l: &Link| {
@@ -296,4 +300,63 @@ fn keys(merge: &Merge, x_c: f64, where_: &str, control_from: f64, merge_from: &s
          controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
          players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n"
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A freeway lane `a_0` (100 m, priority 3) and a ramp `r_0` (40 m, priority 1) meeting at a
+    /// junction: `a_0` into `o_0` through a 6 m junction lane with link state `main`, `r_0` into
+    /// `o_0` (8 m) and `o_1` (9 m) with `ramp`; `extra` goes on the ramp's links.
+    fn net(main: &str, ramp: &str, extra: &str) -> String {
+        format!(
+            r#"<net>
+            <edge id=":j_0" function="internal"><lane id=":j_0_0" index="0" length="8.00"/><lane id=":j_0_1" index="1" length="9.00"/></edge>
+            <edge id=":j_1" function="internal"><lane id=":j_1_0" index="0" length="6.00"/></edge>
+            <edge id="a" priority="3"><lane id="a_0" index="0" length="100.00"/></edge>
+            <edge id="r" priority="1"><lane id="r_0" index="0" length="40.00"/></edge>
+            <edge id="o" priority="3"><lane id="o_0" index="0" length="50.00"/><lane id="o_1" index="1" length="50.00"/></edge>
+            <connection from="a" to="o" fromLane="0" toLane="0" via=":j_1_0" state="{main}"/>
+            <connection from=":j_1" to="o" fromLane="0" toLane="0" state="M"/>
+            <connection from="r" to="o" fromLane="0" toLane="0" via=":j_0_0" state="{ramp}"{extra}/>
+            <connection from="r" to="o" fromLane="0" toLane="1" via=":j_0_1" state="{ramp}"{extra}/>
+            <connection from=":j_0" to="o" fromLane="0" toLane="0" state="M"/>
+            <connection from=":j_0" to="o" fromLane="1" toLane="1" state="M"/>
+            </net>"#
+        )
+    }
+
+    fn merges(text: &str) -> Vec<Merge> {
+        merges_of(&roxmltree::Document::parse(text).unwrap())
+    }
+
+    #[test]
+    fn a_lane_that_yields_at_a_junction_into_a_lane_another_feeds_is_a_junction_merge() {
+        for (main, ramp) in [("M", "m"), ("Z", "Z")] {
+            let found = merges(&net(main, ramp, ""));
+            assert_eq!(found.len(), 1, "{main} {ramp}");
+            let m = &found[0];
+            assert_eq!(m.form, MergeForm::Junction);
+            assert_eq!(m.ramp_lanes, ["r_0"]);
+            assert_eq!(m.target_lanes, ["a_0", "o_0"]);
+            assert_eq!(m.target_lane, "o_0");
+            // o_0 starts at 106; the ramp's 8 m junction lane ends there: the stop line is 98.
+            assert_eq!((m.lane_start, m.lane_end), (58.0, 98.0));
+        }
+        // Where the freeway lane yields, it is the lane that merges.
+        let swapped = merges(&net("m", "M", ""));
+        assert_eq!(swapped.len(), 1);
+        assert_eq!(
+            (
+                swapped[0].ramp_lanes.as_slice(),
+                swapped[0].target_lanes.as_slice()
+            ),
+            (&["a_0".to_owned()][..], &["r_0".to_owned(), "o_0".to_owned()][..])
+        );
+        // Two major links: neither yields, no merge.
+        assert!(merges(&net("M", "M", "").replace("priority=\"1\"", "priority=\"3\"")).is_empty());
+        // A signal at the junction: an intersection, not a merge.
+        assert!(merges(&net("M", "m", " tl=\"j\"")).is_empty());
+    }
 }

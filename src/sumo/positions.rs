@@ -219,6 +219,8 @@ pub(crate) struct Link {
     pub(crate) to: String,
     via: Option<String>,
     pub(crate) state: String,
+    /// The link is controlled by a traffic light.
+    pub(crate) signalised: bool,
 }
 
 /// The network's connections, lane to lane, in file order.
@@ -232,6 +234,7 @@ pub(crate) fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
                 to: format!("{}_{}", n.attribute("to")?, n.attribute("toLane")?),
                 via: n.attribute("via").map(str::to_owned),
                 state: n.attribute("state").unwrap_or("M").to_owned(),
+                signalised: n.attribute("tl").is_some(),
             })
         })
         .collect()
