@@ -376,6 +376,7 @@ pub fn run_controller(
         timespace.extend(controller.take_timespace());
         records.extend(controller.finish().into_iter().map(|r| (k, r)));
     }
+    collisions.sort_by(|a, b| a.time.total_cmp(&b.time)); // stable: one merge keeps its order
     let ssm_output = match settings.launch {
         Launch::Attach { .. } => None,
         _ => Some((ssm.clone(), read_xml(&ssm)?)),
