@@ -22,6 +22,15 @@ die() { say "$*"; [ -s "$LOG" ] && { say "last lines of $LOG:"; tail -n 20 "$LOG
 # Installers write to $LOG; it is shown only when something fails.
 quietly() { "$@" >>"$LOG" 2>&1; }
 
+# --- Rust ------------------------------------------------------------------------------------
+# Edition 2024 needs Rust 1.85 or newer (Cargo.toml's rust-version); Debian 12's rustc is 1.63.
+RUST_MIN=1.85
+rustc_version=$(rustc --version 2>/dev/null | awk '{print $2}' || true)
+if [ -z "$rustc_version" ] || [ "$(printf '%s\n%s\n' "$RUST_MIN" "$rustc_version" | sort -V | head -1)" != "$RUST_MIN" ]; then
+  die "Rust ${RUST_MIN} or newer is needed (found: ${rustc_version:-none}). Install it with rustup: \
+curl --proto '=https' --tlsv1.2 -sSf https://sh.rustup.rs | sh -s -- -y && . \"\$HOME/.cargo/env\""
+fi
+
 # --- system packages -------------------------------------------------------------------------
 missing=()
 command -v sumo >/dev/null 2>&1 && [ -f /usr/include/libsumo/Simulation.h ] || missing+=(sumo)
