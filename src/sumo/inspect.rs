@@ -36,7 +36,9 @@ pub struct Merge {
     /// The target lane the ramp joins: beside the acceleration lane, or the one a junction
     /// merge leads into.
     pub target_lane: String,
-    /// Position where the last ramp lane begins (m).
+    /// Position where the acceleration lane begins (m): the first of the last ramp lanes that
+    /// run beside a target lane, on one edge or several; for a junction merge, where the last
+    /// ramp lane begins.
     pub lane_start: f64,
     /// Position where the last ramp lane ends (m): the stop line of a junction merge.
     pub lane_end: f64,
@@ -180,8 +182,17 @@ fn placed(
     target: &str,
 ) -> Option<Merge> {
     let positions = LanePositions::of_network(doc, &ramp_lanes, &target_lanes, 0.0).ok()?;
-    let (lane_start, lane_end) = positions.span(ramp_lanes.last()?)?;
+    let (mut lane_start, lane_end) = positions.span(ramp_lanes.last()?)?;
     let (ramp_start, _) = positions.span(&ramp_lanes[0])?;
+    if positions.form() == MergeForm::AccelerationLane {
+        // An acceleration lane may span several edges: it begins at the first of the last ramp
+        // lanes that each run beside a target lane.
+        let beside = |lane: &&String| {
+            split_lane_id(lane).is_some_and(|(edge, i)| target_lanes.contains(&format!("{edge}_{}", i + 1)))
+        };
+        let first = ramp_lanes.iter().rev().take_while(beside).last()?;
+        lane_start = positions.span(first)?.0;
+    }
     Some(Merge {
         form: positions.form(),
         ramp_lanes,
@@ -325,6 +336,32 @@ mod tests {
             <connection from=":j_0" to="o" fromLane="1" toLane="1" state="M"/>
             </net>"#
         )
+    }
+
+    #[test]
+    fn an_acceleration_lane_over_two_edges_begins_on_the_first() {
+        // Ramp r_0 (40 m) -> b_0 (100 m) -> c_0 (60 m, ends); freeway a_0 (200 m) -> b_1 ->
+        // c_1 -> d_0 (no junction lanes).
+        let text = r#"<net>
+            <edge id="a"><lane id="a_0" index="0" length="200.00"/></edge>
+            <edge id="r"><lane id="r_0" index="0" length="40.00"/></edge>
+            <edge id="b"><lane id="b_0" index="0" length="100.00"/><lane id="b_1" index="1" length="100.00"/></edge>
+            <edge id="c"><lane id="c_0" index="0" length="60.00"/><lane id="c_1" index="1" length="60.00"/></edge>
+            <edge id="d"><lane id="d_0" index="0" length="300.00"/></edge>
+            <connection from="a" to="b" fromLane="0" toLane="1"/>
+            <connection from="r" to="b" fromLane="0" toLane="0"/>
+            <connection from="b" to="c" fromLane="0" toLane="0"/>
+            <connection from="b" to="c" fromLane="1" toLane="1"/>
+            <connection from="c" to="d" fromLane="1" toLane="0"/>
+            </net>"#;
+        let found = merges(text);
+        assert_eq!(found.len(), 1);
+        let m = &found[0];
+        assert_eq!(m.form, MergeForm::AccelerationLane);
+        assert_eq!(m.ramp_lanes, ["r_0", "b_0", "c_0"]);
+        assert_eq!(m.target_lanes, ["a_0", "b_1", "c_1", "d_0"]);
+        // b_0 runs beside b_1 from 200 m, c_0 beside c_1 to 360 m; the ramp starts at 160 m.
+        assert_eq!((m.ramp_start, m.lane_start, m.lane_end), (160.0, 200.0, 360.0));
     }
 
     fn merges(text: &str) -> Vec<Merge> {
