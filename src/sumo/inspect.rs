@@ -270,14 +270,38 @@ fn keys_of(merge: &Merge) -> String {
 
 /// A commented `merge.toml` for every merge of `merges` in the network `net`: the single form
 /// for one, `[[merge]]` tables (each named after its ramp's first edge) for several.
+///
+/// A merge whose ramp lanes overlap an earlier one's (a ramp of two lanes, one ending beside the
+/// other, then joining the freeway) is left out with a comment: a vehicle is the ego of one
+/// merge at a time. Names are unique (the lane's id where two merges start on one edge).
 pub fn proposals(merges: &[Merge], net: &Path) -> String {
-    if let [one] = merges {
-        return proposal(one, net);
-    }
-    let mut text = header(net);
+    let mut kept: Vec<&Merge> = Vec::new();
+    let mut skipped = String::new();
     for m in merges {
+        match kept
+            .iter()
+            .position(|k| k.ramp_lanes.iter().any(|l| m.ramp_lanes.contains(l)))
+        {
+            Some(k) => {
+                skipped += &format!(
+                    "# Left out: the merge of `{}` shares ramp lanes with merge {} below.\n",
+                    m.ramp_lanes.last().map_or("", String::as_str),
+                    k + 1
+                );
+            }
+            None => kept.push(m),
+        }
+    }
+    if let [one] = kept.as_slice() {
+        return proposal(one, net) + &skipped;
+    }
+    let mut text = header(net) + &skipped;
+    let mut names: Vec<&str> = Vec::new();
+    for m in kept {
         let first = m.ramp_lanes.first().map_or("", String::as_str);
-        let name = split_lane_id(first).map_or(first, |(edge, _)| edge);
+        let edge = split_lane_id(first).map_or(first, |(edge, _)| edge);
+        let name = if names.contains(&edge) { first } else { edge };
+        names.push(name);
         text += &format!("\n[[merge]]\nname = \"{name}\"\n{}", keys_of(m));
     }
     text
