@@ -388,6 +388,33 @@ mod tests {
         assert_eq!((m.ramp_start, m.lane_start, m.lane_end), (160.0, 200.0, 360.0));
     }
 
+    #[test]
+    fn proposals_leave_out_merges_that_share_ramp_lanes_and_keep_names_unique() {
+        let merge = |ramp: &[&str], target: &[&str]| Merge {
+            form: MergeForm::AccelerationLane,
+            ramp_lanes: ramp.iter().map(|l| l.to_string()).collect(),
+            target_lanes: target.iter().map(|l| l.to_string()).collect(),
+            target_lane: target[1].to_owned(),
+            lane_start: 300.0,
+            lane_end: 400.0,
+            ramp_start: 100.0,
+        };
+        let merges = [
+            merge(&["r_1", "m_0"], &["a_0", "m_1", "b_0"]),
+            merge(&["r_0"], &["r_1", "m_0"]),
+            merge(&["q_0", "m_0"], &["a_0", "m_1", "b_0"]),
+        ];
+        let text = proposals(&merges, Path::new("n.net.xml"));
+        assert!(
+            text.contains("# Left out: the merge of `m_0` shares ramp lanes with merge 1"),
+            "{text}"
+        );
+        let names: Vec<&str> = text.lines().filter_map(|l| l.strip_prefix("name = ")).collect();
+        assert_eq!(names, ["\"r\"", "\"r_0\""]);
+        let parsed: toml::Table = text.parse().unwrap();
+        assert_eq!(parsed["merge"].as_array().unwrap().len(), 2);
+    }
+
     fn merges(text: &str) -> Vec<Merge> {
         merges_of(&roxmltree::Document::parse(text).unwrap())
     }
