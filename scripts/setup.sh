@@ -18,7 +18,7 @@ CACHE_DIR="${XDG_CACHE_HOME:-$HOME/.cache}/mpgdrive/libtorch-${TORCH_VERSION}"
 
 LOG=$(mktemp "${TMPDIR:-/tmp}/mpgdrive-setup.XXXXXX.log")
 say() { echo "setup: $*" >&2; }
-die() { say "$*"; [ -s "$LOG" ] && { say "last lines of $LOG:"; tail -n 20 "$LOG" >&2; }; exit 1; }
+die() { say "$*"; [ -s "$LOG" ] && { say "last lines of the log:"; tail -n 20 "$LOG" >&2; }; rm -f "$LOG"; exit 1; }
 # Installers write to $LOG; it is shown only when something fails.
 quietly() { "$@" >>"$LOG" 2>&1; }
 
