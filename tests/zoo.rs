@@ -44,13 +44,19 @@ fn build(dir: &Path, args: &str) {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
-/// Runs `mpgdrive cosim --json` in `dir` (the installed binary's way: any folder, only
-/// `--sumocfg`), with its own cache for the bundled files, and returns the runs.
-fn cosim_in(dir: &Path, cache: &Path, args: &[&str]) -> serde_json::Value {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"))
-        .current_dir(dir)
+/// `mpgdrive` started in `dir` (the installed binary's way: any folder), with its own cache
+/// for the bundled files.
+fn mpgdrive_in(dir: &Path, cache: &Path) -> std::process::Command {
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"));
+    c.current_dir(dir)
         .env("XDG_CACHE_HOME", cache)
-        .env_remove("MPGDRIVE_HOME")
+        .env_remove("MPGDRIVE_HOME");
+    c
+}
+
+/// Runs `mpgdrive cosim --json` in `dir` with only `--sumocfg` and `args`, and returns the runs.
+fn cosim_in(dir: &Path, cache: &Path, args: &[&str]) -> serde_json::Value {
+    let out = mpgdrive_in(dir, cache)
         .args([
             "cosim",
             "--sumocfg",
@@ -222,9 +228,7 @@ fn route_files_as_users_write_them_run_in_cosim_routes_and_batch() {
     for f in ["trips.rou.xml", "dist.rou.xml"] {
         std::fs::copy(dir.join(f), dir.join("all").join(f)).unwrap();
     }
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"))
-        .current_dir(&dir)
-        .env("XDG_CACHE_HOME", &cache)
+    let out = mpgdrive_in(&dir, &cache)
         .args([
             "batch",
             "--sumocfg",
@@ -282,9 +286,7 @@ fn a_corridor_with_three_on_ramps_runs_from_one_merge_toml_and_reports_each_merg
         assert_eq!(controlled_collisions(run), 0, "{who}");
     }
     // The markdown has a row per merge.
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mpgdrive"))
-        .current_dir(&dir)
-        .env("XDG_CACHE_HOME", root.0.join("cache"))
+    let out = mpgdrive_in(&dir, &root.0.join("cache"))
         .args([
             "cosim",
             "--sumocfg",

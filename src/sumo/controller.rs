@@ -508,10 +508,15 @@ impl Controller {
     /// junction lane conflicts with, often all lanes of the freeway at once: on a 3-lane
     /// freeway with 900 veh/h, 2 of SUMO's own ramp drivers got through in 300 s.
     fn speed_mode(&self, car: &Car) -> i32 {
-        match (self.positions.form(), &car.ramp_lane) {
-            (MergeForm::Junction, Some(_)) => self.modes.speed & !RIGHT_OF_WAY,
+        match car.ramp_lane {
+            Some(_) if self.is_junction() => self.modes.speed & !RIGHT_OF_WAY,
             _ => self.modes.speed,
         }
+    }
+
+    /// Whether the merge is a junction merge (the ramp lane ends at the stop line).
+    fn is_junction(&self) -> bool {
+        self.positions.form() == MergeForm::Junction
     }
 
     /// Whether SUMO may hold back a lane change the controller asks for (the ramp vehicles'
@@ -535,7 +540,7 @@ impl Controller {
     /// the conflict point, or from `merge_from` on where the lane change is safe (the traffic
     /// world's merge-zone rule, [`lane_change_is_safe`]).
     fn merges_now(&self, cars: &[Car], car: usize) -> bool {
-        if self.positions.form() == MergeForm::Junction {
+        if self.is_junction() {
             return false; // it enters by driving on through the junction
         }
         let x = cars[car].x;
@@ -868,7 +873,7 @@ impl Controller {
                 let mut a = applied_action(&rules, self.config.sim.feasibility, scene, i, nb, f64::from(a));
                 if self.config.sim.feasibility {
                     let bounds = [
-                        if self.sumo_holds_lane_changes() || self.positions.form() == MergeForm::Junction {
+                        if self.sumo_holds_lane_changes() || self.is_junction() {
                             ramp_leader_bound(cars, j, scene_leader, &rules)
                         } else {
                             None
@@ -968,7 +973,7 @@ impl Controller {
     /// shield: it applies with or without `--gate` and whatever SUMO's speed mode.
     fn stop_line_bound(&self, cars: &[Car], j: usize, rules: &WorldRules) -> Option<f64> {
         let car = &cars[j];
-        if self.positions.form() != MergeForm::Junction || !car.on_ramp {
+        if !self.is_junction() || !car.on_ramp {
             return None;
         }
         let mut line = rules.gate;

@@ -265,7 +265,21 @@ fn keys_of(merge: &Merge) -> String {
             .min(merge.lane_start - LANE_MARGIN)
             .max(merge.ramp_start);
     }
-    keys(merge, x_c, &where_, control_from, &merge_from)
+    let ramp = quoted(&merge.ramp_lanes);
+    let target = quoted(&merge.target_lanes);
+    format!(
+        "target_start = 0.0               # the position of the start of target_lanes' first lane\n\
+         conflict_point = {x_c:.1}          # {where_}\n\
+         control_from = {control_from:.1}            # egos are picked up here: 120 m before x_c (training starts them 40-120 m\n\
+         #                                  before), or 10 m before an acceleration lane if that is earlier, and not\n\
+         #                                  before the ramp begins\n\
+         release_after = 50.0             # a merged ego is released 50 m past x_c\n\
+         {merge_from}\
+         ramp_lanes = {ramp}   # in driving order, the lane that ends last\n\
+         target_lanes = {target}   # in driving order\n\
+         controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
+         players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n"
+    )
 }
 
 /// A commented `merge.toml` for every merge of `merges` in the network `net`: the single form
@@ -315,25 +329,6 @@ fn header(net: &Path) -> String {
          # distances driven along the lanes, from 0 at the start of the first target lane; a ramp\n\
          # vehicle's position is the target-lane position it reaches by driving on.\n",
         net.display()
-    )
-}
-
-/// The keys of one merge's proposal, commented.
-fn keys(merge: &Merge, x_c: f64, where_: &str, control_from: f64, merge_from: &str) -> String {
-    let ramp = quoted(&merge.ramp_lanes);
-    let target = quoted(&merge.target_lanes);
-    format!(
-        "target_start = 0.0               # the position of the start of target_lanes' first lane\n\
-         conflict_point = {x_c:.1}          # {where_}\n\
-         control_from = {control_from:.1}            # egos are picked up here: 120 m before x_c (training starts them 40-120 m\n\
-         #                                  before), or 10 m before an acceleration lane if that is earlier, and not\n\
-         #                                  before the ramp begins\n\
-         release_after = 50.0             # a merged ego is released 50 m past x_c\n\
-         {merge_from}\
-         ramp_lanes = {ramp}   # in driving order, the lane that ends last\n\
-         target_lanes = {target}   # in driving order\n\
-         controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
-         players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n"
     )
 }
 

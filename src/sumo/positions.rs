@@ -43,8 +43,7 @@ pub struct LanePositions {
 }
 
 /// How the ramp joins the target lane.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum MergeForm {
     /// The last ramp lane ends beside a target lane of the same edge, which goes on: a ramp
     /// vehicle changes lanes along it (an acceleration lane, or a lane drop whose lane ends).
