@@ -66,6 +66,23 @@ pub struct ScenarioConfig {
     /// Default 0: the ramp ends at `x_c`, as the paper.
     #[serde(default)]
     pub accel_lane: f64,
+    /// How a ramp vehicle enters the target lane. Default `conflict_point`, the paper's.
+    #[serde(default)]
+    pub entry: Entry,
+}
+
+/// How a ramp vehicle enters the target lane.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Entry {
+    /// The paper's: it joins the target lane when its `x` reaches the ramp's end (`x_c`, or
+    /// the acceleration lane's end), whatever is beside it.
+    #[default]
+    ConflictPoint,
+    /// The entry rule ([`crate::world::merge_gate`], "Entry rule"): it joins the target lane
+    /// only into a gap a human follower absorbs; without one it stops at the ramp's end and
+    /// waits. Nothing forces an entry.
+    Gap,
 }
 
 /// The world an episode starts in.
@@ -158,6 +175,10 @@ pub struct SimConfig {
     /// Largest braking a merge may ask of the new follower or of the merging vehicle (m/s^2).
     #[serde(default = "default_b_safe")]
     pub b_safe: f64,
+    /// Reaction time of a human follower in the entry rule (`scenario.entry = "gap"`, s):
+    /// the follower goes on at its speed this long before it brakes at `b_safe`.
+    #[serde(default = "default_reaction_time")]
+    pub reaction_time: f64,
     /// With `feasibility`: also project (and gate) the players a non-learning driver drives
     /// (IDM, constant speed). Off: only policy-driven players follow the feasibility rules and
     /// the others drive by their own rule, as the paper's surrounding players do. On when
@@ -351,6 +372,11 @@ fn default_b_safe() -> f64 {
     4.0
 }
 
+/// SUMO's default driver reaction time (Krauss's `tau`).
+fn default_reaction_time() -> f64 {
+    1.0
+}
+
 /// Reads a TOML file into `T` (unknown keys refused when `T` says so).
 pub fn load_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, ConfigError> {
     let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
@@ -519,6 +545,7 @@ impl Config {
         non_negative("sim.safety_gap", m.safety_gap)?;
         non_negative("sim.time_headway", m.time_headway)?;
         positive("sim.b_safe", m.b_safe)?;
+        non_negative("sim.reaction_time", m.reaction_time)?;
         non_negative("reward.v_desired", r.v_desired)?;
         positive("reward.v_c", r.v_c)?;
         positive("reward.epsilon", r.epsilon)?;

@@ -14,7 +14,7 @@ use crate::game::terms;
 use crate::num::Num;
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::idm::{idm_accel, idm_v0};
-use crate::world::merge_gate::{gate_holds, stop_bound};
+use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
@@ -263,6 +263,11 @@ pub fn apply_limits(
         Some(mask) if feasibility => Var::select(mask, &a, raw),
         _ => a,
     };
+    let a = if rules.gate.reaction_time.is_some() {
+        hold_at_lane_end(rules, batch, &a)
+    } else {
+        a
+    };
     clip_action(&a, &batch.v, rules.max_accel, rules.v_min, rules.v_max, dt)
 }
 
@@ -282,6 +287,19 @@ fn merge_gate(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
     let closed = Var::constant(closed, batch.x.rows(), batch.x.cols());
     let bound = stop_bound(&batch.x, &batch.v, &rules.gate);
     Var::select(&closed, &a.min(&bound), a)
+}
+
+/// The entry rule's lane end on `a`: ramp players it holds
+/// ([`crate::world::merge_gate::lane_end_holds`]) get `min(a, stop bound)`, every player.
+fn hold_at_lane_end(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
+    let held: Vec<f64> = batch
+        .scenes()
+        .iter()
+        .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(lane_end_holds(s, i, &rules.gate)))))
+        .collect();
+    let held = Var::constant(held, batch.x.rows(), batch.x.cols());
+    let bound = stop_bound(&batch.x, &batch.v, &rules.gate);
+    Var::select(&held, &a.min(&bound), a)
 }
 
 /// The unordered player pairs `i < j` of `n` players: the pair terms are symmetric

@@ -18,7 +18,8 @@
 //! from the check's seed. With the feasibility projection or collision termination on, a
 //! player's transition depends on its neighbours and the identity no longer holds exactly: the
 //! check then reports the measured gap as a finding. So does an early merge
-//! (`scenario.merge_zone`), which waits for a safe gap; the exact setting turns it off too.
+//! (`scenario.merge_zone`) and the entry rule (`scenario.entry = "gap"`), which wait for a safe
+//! gap; the exact setting turns them off too.
 //!
 //! In merge traffic (`scenario.kind = "traffic"`) the check runs on traffic episodes, several
 //! ramp vehicles and both streams, every vehicle a player (humans too: see [`check_mpg`]).
@@ -194,6 +195,7 @@ pub fn check_mpg(
         // as the projection does.
         config.scenario.merge_zone = 0.0;
         config.scenario.accel_lane = 0.0;
+        config.scenario.entry = crate::config::Entry::ConflictPoint;
     }
     let config = &config;
     let n = config.n_agents();

@@ -92,7 +92,7 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
 
 /// The world rules a trained policy's behaviour rests on, by configuration key: the step, the
 /// limits, the vehicle box, the geometry and the feasibility rules (flags as 0 or 1).
-fn world_rules(c: &Config) -> [(&'static str, f64); 16] {
+fn world_rules(c: &Config) -> [(&'static str, f64); 18] {
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     [
         ("sim.dt", c.sim.dt),
@@ -109,6 +109,8 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 16] {
         ("sim.time_headway", c.sim.time_headway),
         ("sim.merge_gate", flag(c.sim.merge_gate)),
         ("sim.b_safe", c.sim.b_safe),
+        ("scenario.entry (1: gap)", flag(c.scenario.entry == crate::config::Entry::Gap)),
+        ("sim.reaction_time", c.sim.reaction_time),
         ("sim.project_non_learning", flag(c.sim.project_non_learning)),
         ("reward.v_desired", c.reward.v_desired),
     ]

@@ -68,7 +68,7 @@
 //! again (speed mode 31, lane-change mode 1621, SUMO's defaults). Vehicles that leave,
 //! teleport or vanish are dropped from the games at once.
 
-use crate::config::Config;
+use crate::config::{Config, Entry};
 use crate::engine::outcome::EgoStats;
 use crate::policy::ensemble::PolicyEnsemble;
 use crate::policy::observation::{BatchPolicy, Frame, Layout, observe_as};
@@ -316,6 +316,14 @@ impl Controller {
             .last()
             .and_then(|lane| positions.span(lane))
             .map(|(_, end)| end);
+        // Under the entry rule the world's ramp ends where the network's does: a centre half a
+        // length before the last ramp lane's end (an acceleration lane's, or a stop line).
+        let mut config = config;
+        let mut rules = rules;
+        if let (Entry::Gap, Some(end)) = (config.scenario.entry, lane_end) {
+            config.scenario.accel_lane = end - 0.5 * config.vehicle.length - config.scenario.conflict_point;
+            rules = WorldRules::new(&config);
+        }
         Controller {
             config,
             rules,
@@ -493,8 +501,13 @@ impl Controller {
     /// target-lane player level with it kept its speed, neither gave way, and the ego drove
     /// beside it to the end of the acceleration lane (measured on `i80_merge`, the game,
     /// demand 1.0: 21% of the egos in an SSM conflict, 4% with the rule).
+    /// Under the entry rule (`scenario.entry = "gap"`) a ramp vehicle is on the ramp in the
+    /// scenes until SUMO has moved it, as the internal world has it until it enters.
     fn scene_entry(&self) -> f64 {
         let x_c = self.rules.conflict_point();
+        if self.entry_rule() {
+            return f64::INFINITY;
+        }
         match self.geometry.merge_from {
             Some(from) if self.traffic && self.sumo_holds_lane_changes() => from.min(x_c),
             _ => x_c,
@@ -519,6 +532,12 @@ impl Controller {
         self.positions.form() == MergeForm::Junction
     }
 
+    /// Whether ramp vehicles enter by the entry rule (`scenario.entry = "gap"`), the world's
+    /// physics: then the lane's end holds them ([`applied_action`]) and nothing forces an entry.
+    fn entry_rule(&self) -> bool {
+        self.config.scenario.entry == Entry::Gap && self.kind != ControllerKind::Sumo
+    }
+
     /// Whether SUMO may hold back a lane change the controller asks for (the ramp vehicles'
     /// lane-change mode has bits 8-9, TraCI requests checked against other vehicles). Only
     /// then can a ramp vehicle wait beside the target lane, and only then do the rules for
@@ -539,11 +558,20 @@ impl Controller {
     /// Whether ramp vehicle `car`, driven by the policy, changes to the target lane now: at
     /// the conflict point, or from `merge_from` on where the lane change is safe (the traffic
     /// world's merge-zone rule, [`lane_change_is_safe`]).
+    /// Under the entry rule (`scenario.entry = "gap"`) it is never at the conflict point
+    /// whatever is beside it: from `merge_from` on (else from the merge zone's start) at the
+    /// first step the entry rule holds, the lane change of the internal world.
     fn merges_now(&self, cars: &[Car], car: usize) -> bool {
         if self.is_junction() {
             return false; // it enters by driving on through the junction
         }
         let x = cars[car].x;
+        if self.entry_rule() {
+            let x_c = self.rules.conflict_point();
+            let from = self.geometry.merge_from.unwrap_or(x_c - self.config.scenario.merge_zone);
+            let lane = ego_and_target_lane(cars, car, self.config.scenario.lane_width);
+            return x >= from && lane_change_is_safe(&lane, 0, &self.rules.gate);
+        }
         x >= self.rules.conflict_point()
             || self.geometry.merge_from.is_some_and(|from| {
                 x >= from
@@ -973,8 +1001,8 @@ impl Controller {
     /// shield: it applies with or without `--gate` and whatever SUMO's speed mode.
     fn stop_line_bound(&self, cars: &[Car], j: usize, rules: &WorldRules) -> Option<f64> {
         let car = &cars[j];
-        if !self.is_junction() || !car.on_ramp {
-            return None;
+        if !self.is_junction() || !car.on_ramp || self.entry_rule() {
+            return None; // under the entry rule the world's lane end holds it
         }
         let mut line = rules.gate;
         line.conflict_point = self.lane_end? - 0.5 * rules.length;
@@ -1143,6 +1171,7 @@ mod tests {
             horizon: 3.0,
             brake: 9.81,
             dt: 0.1,
+            reaction_time: None,
         };
         assert!(!entry_is_safe(&scene, 0, &rules));
     }
@@ -1433,6 +1462,28 @@ mod tests {
             }
         });
         net
+    }
+
+    #[test]
+    fn under_the_entry_rule_nothing_forces_an_entry_and_the_lane_end_holds_the_ego() {
+        let mut config =
+            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml")).unwrap();
+        config.scenario.entry = Entry::Gap;
+        let mut c = paper_controller();
+        c.config = config.clone();
+        c.rules = WorldRules::new(&config);
+        c.geometry.merge_from = Some(138.0);
+        // At x_c beside a car: no entry (the paper's controller would send it now).
+        let beside = [car("ego", 180.0, 12.0, true), car("lane", 181.0, 12.0, false)];
+        assert!(!c.merges_now(&beside, 0));
+        // Alone, from merge_from on: now.
+        assert!(c.merges_now(&[car("ego", 140.0, 12.0, true)], 0));
+        // A follower 40 m behind at 20 m/s: MOBIL's check passes (one step on the gap is
+        // 141.2 - 102 - 7 = 32.2 m, closing 8 m/s: TTC 4 s, 8^2 <= 8 * 32.2), but a human's
+        // secure gap is 20 + (400 - 144) / 8 = 52 m: not now; 60 m behind (52.2 m): now.
+        let follower = |behind: f64| [car("ego", 140.0, 12.0, true), car("lane", 140.0 - behind, 20.0, false)];
+        assert!(!c.merges_now(&follower(40.0), 0));
+        assert!(c.merges_now(&follower(60.0), 0));
     }
 
     #[test]

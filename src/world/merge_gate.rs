@@ -32,6 +32,19 @@
 //! ahead as at the stop line held egos slower than the target lane until the gap they had
 //! drifted past.
 //!
+//! **Entry rule** (`scenario.entry = "gap"`, [`lane_end_holds`]): part of the world's
+//! physics, not a shield, and the same in training, `eval`, `check-mpg` and SUMO. A ramp
+//! vehicle enters the target lane only where the lane change above holds and, on top of it,
+//! both new gaps are at least a human driver's [`secure_gap`]: the new follower goes on at its
+//! speed for its reaction time (`sim.reaction_time`, SUMO's `tau`) before braking at `b_safe`
+//! and still stops behind the entering vehicle should that brake at `b_safe` at once (Krauss's
+//! safe speed, which SUMO's drivers keep and their lane changes ask for), and the entering
+//! vehicle keeps the same gap to its new leader. The ramp ends where it ends: a vehicle
+//! without such a gap is held by the stopping bound below at the ramp's end (`x_c`, or the
+//! acceleration lane's end) and waits there, as SUMO's drivers wait at the end of an
+//! acceleration lane or at a stop line; nothing forces an entry. A vehicle that starts too
+//! fast to stop there (an initial state only) brakes at `g` and joins where it ends up.
+//!
 //! **Stopping bound** ([`stop_bound`]): after this step the vehicle is at `x' = x + v dt`
 //! (eq. 1 moves `x` with the current speed) with speed `v' = v + a dt`; from there it stops
 //! before `x_s = x_c - 0.1 m` braking at `b` when `v'^2 / (2 b) + v' dt <= x_s - x'`, that is
@@ -42,7 +55,7 @@
 //! follower. The decision
 //! (safe or not) is discrete and carries no gradient; the bound is differentiable in `x` and `v`.
 
-use crate::config::Config;
+use crate::config::{Config, Entry};
 use crate::num::Num;
 use crate::world::state::{Scene, Vehicle};
 
@@ -65,6 +78,10 @@ pub struct GateRules {
     pub brake: f64,
     /// Time step (s).
     pub dt: f64,
+    /// With the entry rule (`scenario.entry = "gap"`): the human follower's reaction time
+    /// (s), and the gaps are judged as a human driver's secure gap (module docs, "Entry
+    /// rule"). None: MOBIL's closing-speed criterion.
+    pub reaction_time: Option<f64>,
 }
 
 impl GateRules {
@@ -77,6 +94,7 @@ impl GateRules {
             horizon: config.sim.tau_s,
             brake: config.vehicle.max_accel,
             dt: config.sim.dt,
+            reaction_time: (config.scenario.entry == Entry::Gap).then_some(config.sim.reaction_time),
         }
     }
 }
@@ -116,7 +134,8 @@ pub fn lane_change_is_safe(scene: &Scene, i: usize, rules: &GateRules) -> bool {
 
 /// Whether `me`, entering at `t` with its current speed, finds gaps that absorb the closing
 /// speeds with a time to collision of at least `min_ttc` (every target-lane vehicle keeping
-/// its speed until then).
+/// its speed until then); with the entry rule (`rules.reaction_time`), gaps of at least a human
+/// driver's secure gap behind and ahead of it too (module docs, "Entry rule").
 fn safe_at(scene: &Scene, me: &Vehicle, t: f64, min_ttc: f64, rules: &GateRules) -> bool {
     let x_e = me.x + me.v * t;
     let mut leader: Option<(f64, f64)> = None;
@@ -131,11 +150,36 @@ fn safe_at(scene: &Scene, me: &Vehicle, t: f64, min_ttc: f64, rules: &GateRules)
             follower = Some((x, v.v));
         }
     }
-    let ahead_ok =
-        leader.is_none_or(|(x, v)| absorbs(x - x_e - rules.clearance, me.v - v, rules.b_safe, min_ttc));
-    let behind_ok =
-        follower.is_none_or(|(x, v)| absorbs(x_e - x - rules.clearance, v - me.v, rules.b_safe, min_ttc));
+    // The gap a driver at `v_back` keeps behind one at `v_front` (none without the rule).
+    let secure = |v_back: f64, v_front: f64| {
+        rules
+            .reaction_time
+            .map_or(0.0, |t_r| secure_gap(v_back, v_front, t_r, rules.b_safe))
+    };
+    let ahead_ok = leader.is_none_or(|(x, v)| {
+        let gap = x - x_e - rules.clearance;
+        absorbs(gap, me.v - v, rules.b_safe, min_ttc) && gap >= secure(me.v, v)
+    });
+    let behind_ok = follower.is_none_or(|(x, v)| {
+        let gap = x_e - x - rules.clearance;
+        absorbs(gap, v - me.v, rules.b_safe, min_ttc) && gap >= secure(v, me.v)
+    });
     ahead_ok && behind_ok
+}
+
+/// A human driver's secure gap (m) behind a leader, as SUMO's Krauss model and its lane
+/// changes keep it: driving at `v_back`, it goes on for its reaction time `t_r` before braking
+/// at `b`, and still stops behind a leader at `v_front` that brakes at `b` now.
+pub fn secure_gap(v_back: f64, v_front: f64, t_r: f64, b: f64) -> f64 {
+    (v_back * t_r + (v_back * v_back - v_front * v_front) / (2.0 * b)).max(0.0)
+}
+
+/// Whether the ramp's end holds ramp vehicle `i` of `scene` under the entry rule
+/// (`scenario.entry = "gap"`, module docs): it is on the ramp and may not enter the target
+/// lane now ([`lane_change_is_safe`]). Held, its action is at most [`stop_bound`]: the lane
+/// ends there, for the policy as for a human driver.
+pub fn lane_end_holds(scene: &Scene, i: usize, rules: &GateRules) -> bool {
+    rules.reaction_time.is_some() && scene.vehicles[i].on_ramp && !lane_change_is_safe(scene, i, rules)
 }
 
 /// The largest action that leaves a vehicle at `(x, v)` able to stop [`STOP_MARGIN`] before

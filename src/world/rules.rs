@@ -158,4 +158,81 @@ mod tests {
         let bound = stop_bound(&212.0, &10.0, &WorldRules::new(&config).gate);
         assert!((bound + 100.0).abs() < 1e-9, "{bound}");
     }
+
+    /// The paper's road with a 40 m merge zone and the entry rule (`scenario.entry = "gap"`,
+    /// reaction time 1 s, b_safe 4 m/s^2, clearance 7 m, tau_s 3 s, x_c = 180 m).
+    fn entry_rule_road() -> WorldRules {
+        let mut config =
+            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
+                .unwrap();
+        config.scenario.merge_zone = 40.0;
+        config.scenario.entry = crate::config::Entry::Gap;
+        (config.sim.reaction_time, config.sim.b_safe) = (1.0, 4.0);
+        WorldRules::new(&config)
+    }
+
+    #[test]
+    fn the_entry_rule_asks_a_human_followers_secure_gap() {
+        use crate::world::merge_gate::secure_gap;
+        // 30 m/s behind 10 m/s: 30 * 1 + (900 - 100) / 8 = 130 m; the other way round none.
+        assert!((secure_gap(30.0, 10.0, 1.0, 4.0) - 130.0).abs() < 1e-12);
+        assert_eq!(secure_gap(10.0, 30.0, 1.0, 4.0), 0.0);
+        let rules = entry_rule_road();
+        // Ego at 160 m, 10 m/s; follower at 20 m/s. One step on: ego 161, follower x + 2.
+        // Secure gap 20 + (400 - 100) / 8 = 57.5 m; MOBIL's own check (closing 10 m/s: 12.5
+        // m at 4 m/s^2, TTC 3 s: 30 m) passes from 40 m on.
+        let with_follower_at = |x: f64| Scene::new(vec![at(160.0, 10.0, true), at(x, 20.0, false)]);
+        // Follower at 95 m: gap 161 - 97 - 7 = 57 m < 57.5; at 94 m: 58 m.
+        assert!(!rules.merges_early(&with_follower_at(95.0), 0));
+        assert!(rules.merges_early(&with_follower_at(94.0), 0));
+        // Without the rule (the paper's entry) MOBIL's check alone: 57 m is ample.
+        let mut mobil = rules;
+        mobil.gate.reaction_time = None;
+        assert!(mobil.merges_early(&with_follower_at(95.0), 0));
+        // A new leader the ego would close on: ego 20 m/s behind a 10 m/s leader needs
+        // 20 + (400 - 100) / 8 = 57.5 m beyond the clearance.
+        let with_leader_at = |x: f64| Scene::new(vec![at(150.0, 20.0, true), at(x, 10.0, false)]);
+        // One step on: ego 152, leader x + 1; gap x + 1 - 152 - 7.
+        assert!(!rules.merges_early(&with_leader_at(215.0), 0)); // 57 m
+        assert!(rules.merges_early(&with_leader_at(216.0), 0)); // 58 m
+    }
+
+    #[test]
+    fn under_the_entry_rule_the_ramps_end_holds_a_vehicle_until_a_gap_comes() {
+        use crate::world::neighbors::find_neighbors;
+        use crate::world::step::{advance, applied_action};
+        let rules = entry_rule_road();
+        // An ego at 170 m and 10 m/s beside a car at 172 m and 10 m/s: it may not enter, it
+        // accelerates as hard as it may (raw g), and still stops before x_c - 0.1 = 179.9 m.
+        let mut scene = Scene::new(vec![at(170.0, 10.0, true), at(172.0, 10.0, false)]);
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        let mut entered_at = None;
+        for step in 0..100 {
+            find_neighbors(&scene, &mut order, &mut nb);
+            let merges = rules.merges_early(&scene, 0);
+            let u = applied_action(&rules, false, &scene, 0, &nb[0], 9.81);
+            let beside = scene.vehicles[1];
+            scene.vehicles[0] = advance(&scene.vehicles[0], u, merges, &rules);
+            scene.vehicles[1] = advance(&beside, 0.0, false, &rules);
+            let ego = scene.vehicles[0];
+            if ego.on_ramp {
+                assert!(ego.x < 179.9 + 1e-9, "step {step}: {ego:?}");
+            } else if entered_at.is_none() {
+                entered_at = Some((step, scene.vehicles[1].x, ego.x));
+            }
+        }
+        // It enters once the car is ahead by more than the clearance (7 m) plus the rule's
+        // gap behind a 10 m/s leader, which it may approach from a standstill: none.
+        let (step, leader, ego) = entered_at.expect("the ego entered once the car had passed");
+        assert!(leader - ego > 7.0, "entered {} m behind at step {step}", leader - ego);
+        assert!(step > 5, "held at first");
+        // The paper's road forces it in at x_c instead.
+        let mut forced = rules;
+        forced.gate.reaction_time = None;
+        let mut scene = Scene::new(vec![at(179.5, 10.0, true), at(180.0, 10.0, false)]);
+        find_neighbors(&scene, &mut order, &mut nb);
+        let u = applied_action(&forced, false, &scene, 0, &nb[0], 0.0);
+        scene.vehicles[0] = advance(&scene.vehicles[0], u, false, &forced);
+        assert!(!scene.vehicles[0].on_ramp);
+    }
 }

@@ -4,7 +4,7 @@
 
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::{Footprint, boxes_overlap};
-use crate::world::merge_gate::{gate_holds, stop_bound};
+use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
 use crate::world::neighbors::Neighbors;
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
@@ -53,7 +53,9 @@ pub fn advance(v: &Vehicle, u: f64, merges: bool, rules: &WorldRules) -> Vehicle
 /// lane's, as Section V-ii, and a ramp queue's: ours), and held by the merge gate
 /// on the ramp (`sim.merge_gate`, [`crate::world::merge_gate`]; a human driver of merge
 /// traffic always merges by the gate, its lane-change rule); then clipped to
-/// `[-g, g]` and the speed bounds (Section V-ii). One function for the internal simulator and
+/// `[-g, g]` and the speed bounds (Section V-ii). Under the entry rule (`scenario.entry =
+/// "gap"`) the ramp's end holds every ramp vehicle that may not enter, whatever `feasibility`
+/// says: that is the road, not a rule of the driver. One function for the internal simulator and
 /// the SUMO co-simulation.
 pub fn applied_action(
     rules: &WorldRules,
@@ -73,6 +75,9 @@ pub fn applied_action(
         a = project_feasible(&a, &lo, &hi);
     }
     if feasibility && (rules.merge_gate || scene.is_human(i)) && gate_holds(scene, i, &rules.gate) {
+        a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
+    }
+    if lane_end_holds(scene, i, &rules.gate) {
         a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
     }
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
