@@ -109,7 +109,10 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 18] {
         ("sim.time_headway", c.sim.time_headway),
         ("sim.merge_gate", flag(c.sim.merge_gate)),
         ("sim.b_safe", c.sim.b_safe),
-        ("scenario.entry (1: gap)", flag(c.scenario.entry == crate::config::Entry::Gap)),
+        (
+            "scenario.entry (1: gap)",
+            flag(c.scenario.entry == crate::config::Entry::Gap),
+        ),
         ("sim.reaction_time", c.sim.reaction_time),
         ("sim.project_non_learning", flag(c.sim.project_non_learning)),
         ("reward.v_desired", c.reward.v_desired),

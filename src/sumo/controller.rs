@@ -568,7 +568,10 @@ impl Controller {
         let x = cars[car].x;
         if self.entry_rule() {
             let x_c = self.rules.conflict_point();
-            let from = self.geometry.merge_from.unwrap_or(x_c - self.config.scenario.merge_zone);
+            let from = self
+                .geometry
+                .merge_from
+                .unwrap_or(x_c - self.config.scenario.merge_zone);
             let lane = ego_and_target_lane(cars, car, self.config.scenario.lane_width);
             return x >= from && lane_change_is_safe(&lane, 0, &self.rules.gate);
         }
@@ -1467,7 +1470,8 @@ mod tests {
     #[test]
     fn under_the_entry_rule_nothing_forces_an_entry_and_the_lane_end_holds_the_ego() {
         let mut config =
-            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml")).unwrap();
+            Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))
+                .unwrap();
         config.scenario.entry = Entry::Gap;
         let mut c = paper_controller();
         c.config = config.clone();
@@ -1481,7 +1485,12 @@ mod tests {
         // A follower 40 m behind at 20 m/s: MOBIL's check passes (one step on the gap is
         // 141.2 - 102 - 7 = 32.2 m, closing 8 m/s: TTC 4 s, 8^2 <= 8 * 32.2), but a human's
         // secure gap is 20 + (400 - 144) / 8 = 52 m: not now; 60 m behind (52.2 m): now.
-        let follower = |behind: f64| [car("ego", 140.0, 12.0, true), car("lane", 140.0 - behind, 20.0, false)];
+        let follower = |behind: f64| {
+            [
+                car("ego", 140.0, 12.0, true),
+                car("lane", 140.0 - behind, 20.0, false),
+            ]
+        };
         assert!(!c.merges_now(&follower(40.0), 0));
         assert!(c.merges_now(&follower(60.0), 0));
     }

@@ -243,7 +243,7 @@ fn keys_of(merge: &Merge) -> String {
                 ),
                 format!(
                     "merge_from = {from:.1}              # egos change to the target lane at the first safe gap from here on\n\
-                     #                                  (10 m into the acceleration lane), as SUMO's drivers do; at x_c at the latest\n"
+                     #                                  (10 m into the acceleration lane), as SUMO's drivers do (entry rule: never forced)\n"
                 ),
             )
         }

@@ -224,7 +224,11 @@ mod tests {
         // It enters once the car is ahead by more than the clearance (7 m) plus the rule's
         // gap behind a 10 m/s leader, which it may approach from a standstill: none.
         let (step, leader, ego) = entered_at.expect("the ego entered once the car had passed");
-        assert!(leader - ego > 7.0, "entered {} m behind at step {step}", leader - ego);
+        assert!(
+            leader - ego > 7.0,
+            "entered {} m behind at step {step}",
+            leader - ego
+        );
         assert!(step > 5, "held at first");
         // The paper's road forces it in at x_c instead.
         let mut forced = rules;
