@@ -19,6 +19,7 @@ fn rules() -> GateRules {
         horizon: 3.0,
         brake: 9.81,
         dt: 0.1,
+        reaction_time: None,
     }
 }
 
