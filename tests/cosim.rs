@@ -233,6 +233,9 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
     geometry.release_after = 1000.0;
     // Ramp vehicles merge early as the traffic world's do: from merge_zone before x_c.
     geometry.merge_from = Some(geometry.conflict_point - config.scenario.merge_zone);
+    // Under the entry rule the ramp ends where the network's acceleration lane does (x = 200
+    // m), a centre half a length before it, in both worlds.
+    config.scenario.accel_lane = 200.0 - 0.5 * config.vehicle.length - geometry.conflict_point;
     let steps = 100;
     // The first two episodes that stay on the network (front bumpers short of NET_END), run
     // 10 s without a collision (an internal episode ends at its first one) and include a merge
