@@ -556,11 +556,12 @@ fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
 #[test]
 fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
     // `single_lane_merge` at demand 1.2 (routes seed 0), ego only, without SUMO's safe speed
-    // (docs/traffic_acceptance.md section 0f). With lane-change mode 256 the egos neither
-    // signal nor change lanes on their own: `onramp.17` braked for the lane's end beside the
-    // 17 m/s lane and was moved at x_c in front of a car closing at 8.6 m/s (TTC 1.3 s), and a
-    // second ego met the same within 200 s. With 257 (`cosim`'s default) that car slowed for
-    // it, it changed lanes 51 m before x_c, and no ego had a conflict.
+    // (docs/traffic_acceptance.md section 0f). Before the entry rule, with lane-change mode 256
+    // (egos neither signal nor change lanes on their own) `onramp.17` braked for the lane's end
+    // beside the 17 m/s lane and was forced in at x_c in front of a car closing at 8.6 m/s
+    // (TTC 1.3 s). Under the entry rule nothing forces an entry: it waits for a gap instead, and
+    // no ego has a conflict in either mode. Signalling (257, `cosim`'s default) still pays: that
+    // car makes room and `onramp.17` loses less time.
     let dir = temp_dir("signal");
     let routes = dir.join("routes");
     let out = bin()
@@ -626,9 +627,7 @@ fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
     };
     let silent = run(Some("256"));
     assert_eq!(silent["shields"]["lane_change_mode"], 256);
-    let conflicts = in_conflict(&silent);
-    assert!(conflicts.contains(&"onramp.17".to_string()), "{conflicts:?}");
-    assert_eq!(conflicts.len(), 2, "{conflicts:?}");
+    assert_eq!(in_conflict(&silent), Vec::<String>::new());
     let signalling = run(None);
     assert_eq!(signalling["shields"]["lane_change_mode"], 257);
     assert_eq!(signalling["shields"]["speed_mode"], 0);
@@ -638,4 +637,16 @@ fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
         silent["egos"].as_array().unwrap().len(),
         "the same egos"
     );
+    let time_loss = |run: &serde_json::Value| {
+        let ego = run["egos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["id"] == "onramp.17");
+        let ego = ego.expect("onramp.17 is an ego");
+        assert_eq!(ego["finished"], true);
+        ego["time_loss"].as_f64().unwrap()
+    };
+    // Measured: 14.72 s waiting silently, 9.21 s signalling.
+    assert!(time_loss(&signalling) + 3.0 < time_loss(&silent));
 }
