@@ -115,6 +115,11 @@ pub struct TrafficConfig {
     pub human_share: [f64; 2],
     /// Share of the target-lane vehicles placed ahead of the conflict point.
     pub ahead_share: f64,
+    /// Range of the share of human drivers that make room for a ramp vehicle in the merge zone
+    /// just ahead of them, as SUMO's drivers do for one that signals (IDM behind it, braking at
+    /// most `sim.b_safe`); the others never do. Drawn per episode; `[0, 0]` (the default): none.
+    #[serde(default)]
+    pub cooperation: [f64; 2],
     /// Range of each episode's desired speed `v_d` (m/s): the reward tracks it, and the
     /// sampled speeds and IDM's `v0` scale by `v_d / reward.v_desired`, so one policy drives
     /// roads of different speed limits. None: `reward.v_desired` in every episode.
@@ -670,6 +675,7 @@ impl Config {
         range("traffic.lane_flow", t.lane_flow, 1.0, 4000.0)?;
         range("traffic.ramp_flow", t.ramp_flow, 1.0, 4000.0)?;
         range("traffic.human_share", t.human_share, 0.0, 1.0)?;
+        range("traffic.cooperation", t.cooperation, 0.0, 1.0)?;
         if let Some(d) = t.desired_speed {
             range("traffic.desired_speed", d, 1.0, self.vehicle.v_max)?;
         }

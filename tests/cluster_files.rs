@@ -1,4 +1,4 @@
-//! The cluster examples: the README shows `scripts/slurm/mpgdrive-array.sbatch` and
+//! The cluster examples: docs/BATCH.md shows `scripts/slurm/mpgdrive-array.sbatch` and
 //! `scripts/k8s/mpgdrive-indexed-job.yaml` verbatim (one source, no drift), and both split the
 //! batch into as many shards as they start tasks.
 
@@ -24,17 +24,17 @@ fn number_after(text: &str, prefix: &str) -> usize {
 }
 
 #[test]
-fn the_readme_shows_the_cluster_files_verbatim() {
-    let readme = read("README.md");
+fn the_batch_guide_shows_the_cluster_files_verbatim() {
+    let readme = read("docs/BATCH.md");
     let sbatch = read("scripts/slurm/mpgdrive-array.sbatch");
     let job = read("scripts/k8s/mpgdrive-indexed-job.yaml");
     assert!(
         readme.contains(&format!("```sh\n{sbatch}```")),
-        "README's Slurm block differs from the file"
+        "docs/BATCH.md's Slurm block differs from the file"
     );
     assert!(
         readme.contains(&format!("```yaml\n{job}```")),
-        "README's Kubernetes block differs from the file"
+        "docs/BATCH.md's Kubernetes block differs from the file"
     );
 }
 

@@ -556,7 +556,7 @@ fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
 #[test]
 fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
     // `single_lane_merge` at demand 1.2 (routes seed 0), ego only, without SUMO's safe speed
-    // (docs/traffic_acceptance.md section 0f). Before the entry rule, with lane-change mode 256
+    // (docs/experiments.md). Before the entry rule, with lane-change mode 256
     // (egos neither signal nor change lanes on their own) `onramp.17` braked for the lane's end
     // beside the 17 m/s lane and was forced in at x_c in front of a car closing at 8.6 m/s
     // (TTC 1.3 s). Under the entry rule nothing forces an entry: it waits for a gap instead, and

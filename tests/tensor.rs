@@ -241,7 +241,36 @@ fn non_learning_players_keep_their_own_rule_in_both_engines_when_asked() {
 fn engines_agree_in_merge_traffic_with_human_drivers() {
     // Traffic episodes (3 ramp vehicles, 10 in the target lane, IDM humans merging by the
     // gate) with a speed-keeping linear policy for the players: same returns and potential.
-    traffic_engines_agree(&common::traffic());
+    let config = common::traffic();
+    traffic_engines_agree(&config);
+    // ...among them drivers who make room for a ramp vehicle (`traffic.cooperation`).
+    assert!(yielding_steps(&config) > 20, "{}", yielding_steps(&config));
+}
+
+/// Over the scalar engine's recorded steps of `traffic_engines_agree`'s scenes: how many times
+/// a human driver made room for a ramp vehicle ahead of it.
+fn yielding_steps(config: &Config) -> usize {
+    use mpgdrive::world::drivers::yields_to;
+    use mpgdrive::world::geometry::Road;
+    use mpgdrive::world::neighbors::find_neighbors;
+    let (scenes, scalar) = scalar_traffic(config);
+    let road = Road::new(config);
+    let (mut order, mut nb) = (Vec::new(), Vec::new());
+    let mut count = 0;
+    for (scene, o) in scenes.iter().zip(&scalar) {
+        let states = &o.trajectory.as_ref().expect("recorded").states;
+        for step in states.chunks(scene.len()).take(o.steps + 1) {
+            let now = mpgdrive::world::Scene {
+                vehicles: step.to_vec(),
+                ..scene.clone()
+            };
+            find_neighbors(&now, &mut order, &mut nb);
+            count += (0..now.len())
+                .filter(|&i| yields_to(&road, &now, i, &nb[i]).is_some())
+                .count();
+        }
+    }
+    count
 }
 
 #[test]
@@ -269,15 +298,23 @@ fn engines_agree_in_merge_traffic_with_an_acceleration_lane() {
 /// Runs traffic episodes (a speed-keeping linear policy for the players, IDM humans) in both
 /// engines, checks their potentials agree and returns how many steps a ramp vehicle spent
 /// past `x_c` still on the ramp (scalar engine).
-fn traffic_engines_agree(config: &Config) -> usize {
+/// Steps of the traffic rollouts compared.
+const TRAFFIC_STEPS: usize = 150;
+
+/// 16 merge-traffic scenes and their scalar rollouts (every step recorded), the players on a
+/// speed-keeping linear policy and the humans on IDM.
+fn scalar_traffic(
+    config: &Config,
+) -> (
+    Vec<mpgdrive::world::Scene>,
+    Vec<mpgdrive::engine::outcome::EpisodeOutcome>,
+) {
     use mpgdrive::engine::rollout::Recording;
-    use mpgdrive::policy::observation::{Frame, Layout, observation_rows, tensor_features};
     use mpgdrive::policy::{LinearPolicy, PolicyActor};
     let scenes = sample_scenes(config, 3, 0, 16);
     assert!(scenes.iter().any(|s| s.humans.contains(&true)));
-    let steps = 150;
     let opts = RolloutOptions {
-        steps,
+        steps: TRAFFIC_STEPS,
         threads: 2,
         recording: Recording::Full,
         ..RolloutOptions::from_config(config)
@@ -286,6 +323,15 @@ fn traffic_engines_agree(config: &Config) -> usize {
     let scalar = rollout(config, &opts, &scenes, || {
         PolicyActor::new(config, linear.clone(), Driver::Idm, true)
     });
+    (scenes, scalar)
+}
+
+fn traffic_engines_agree(config: &Config) -> usize {
+    use mpgdrive::policy::LinearPolicy;
+    use mpgdrive::policy::observation::{Frame, Layout, observation_rows, tensor_features};
+    let (scenes, scalar) = scalar_traffic(config);
+    let steps = TRAFFIC_STEPS;
+    let linear = LinearPolicy::speed_keeping(config);
     let t = tensor::rollout(
         config,
         &scenes,

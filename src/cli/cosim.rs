@@ -37,7 +37,7 @@ pub struct CosimArgs {
     end: f64,
     /// The merge gate as a shield for the ramp vehicles the policy drives: true or false (the
     /// learned policy alone, the default: the Table I policies were trained without it; with
-    /// it, the traffic policies' egos crawled: docs/traffic_acceptance.md). A policy is checked
+    /// it, the traffic policies' egos crawled: docs/experiments.md). A policy is checked
     /// against --config as it is; the results say which.
     #[arg(long, action = clap::ArgAction::Set, default_value_t = false)]
     gate: bool,

@@ -155,7 +155,7 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
         &mut doc,
         "NGSIM I-80 replay (Table IV)",
         &args.ngsim.join("table4.md"),
-        "no NGSIM results: run `mpgdrive ngsim eval` on the official I-80 files (see the README) and pass its --out here with --ngsim",
+        "no NGSIM results: run `mpgdrive ngsim eval` on the official I-80 files (see docs/NGSIM.md) and pass its --out here with --ngsim",
     );
     if let Some(dir) = &args.batch {
         batch_section(&mut doc, dir, &ctx.figures)?;
@@ -435,7 +435,7 @@ fn cosim_section(doc: &mut Document, dir: &Path, figures: &Path) -> Result<()> {
         doc,
         "SUMO co-simulation",
         &dir.join("cosim.md"),
-        "no co-simulation results: run `mpgdrive cosim` (see the README) and pass its --out here with --cosim",
+        "no co-simulation results: run `mpgdrive cosim` (see docs/GUIDE.md) and pass its --out here with --cosim",
     );
     if !included {
         return Ok(());

@@ -12,7 +12,9 @@ use crate::engine::tape::Var;
 use crate::game::reward::{speed_weight, tail_weight};
 use crate::game::terms;
 use crate::num::Num;
+use crate::world::drivers::{makes_room, yield_length, yields_to};
 use crate::world::dynamics::{Kinematics, zero_steering_step};
+use crate::world::geometry::Road;
 use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
@@ -39,6 +41,8 @@ pub struct TensorBatch {
     pub human: Var,
     /// Each scene's human flags (as [`Scene::humans`]).
     humans: Vec<Vec<bool>>,
+    /// Each scene's yielding flags (as [`Scene::yields`]).
+    yields: Vec<Vec<bool>>,
     /// Each scene's own desired speed (as [`Scene::v_desired`]).
     own_desired: Vec<Option<f64>>,
     /// The same states as plain scenes, without gradient: the discrete work (neighbours,
@@ -65,6 +69,7 @@ impl TensorBatch {
             on_ramp: field(|v| if v.on_ramp { 1.0 } else { 0.0 }),
             human: human_mask(scenes),
             humans: scenes.iter().map(|s| s.humans.clone()).collect(),
+            yields: scenes.iter().map(|s| s.yields.clone()).collect(),
             own_desired: scenes.iter().map(|s| s.v_desired).collect(),
             detached: scenes.to_vec(),
         }
@@ -91,6 +96,7 @@ impl TensorBatch {
             on_ramp,
             human: self.human.clone(),
             humans: self.humans.clone(),
+            yields: self.yields.clone(),
             own_desired: self.own_desired.clone(),
             detached: Vec::new(),
         };
@@ -129,6 +135,7 @@ impl TensorBatch {
                     })
                     .collect(),
                 humans: self.humans[b].clone(),
+                yields: self.yields[b].clone(),
                 v_desired: self.own_desired[b],
             })
             .collect()
@@ -210,19 +217,39 @@ impl NeighborIndex {
 /// the nearest leader, whichever asks for less, as [`crate::world::drivers::driver_accel`]).
 pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> Var {
     let v0 = batch.per_scene(|d| idm_v0(config, d));
-    let behind = |leader: &Neighbor<Var>| {
-        idm_accel(
-            &batch.x,
-            &batch.v,
-            leader,
-            config.vehicle.length,
-            &config.idm,
-            v0.as_ref(),
-        )
+    let behind = |leader: &Neighbor<Var>, length: f64| {
+        idm_accel(&batch.x, &batch.v, leader, length, &config.idm, v0.as_ref())
     };
-    let lane = behind(&nb.get(batch, Which::LaneLeader));
-    let nearest = behind(&nb.get(batch, Which::Leader));
+    let lane = behind(&nb.get(batch, Which::LaneLeader), config.vehicle.length);
+    let nearest = behind(&nb.get(batch, Which::Leader), config.vehicle.length);
+    let lane = match yielding_mask(config, batch) {
+        Some(mask) => {
+            let room = behind(&nb.get(batch, Which::Leader), yield_length(config));
+            let yields: Vec<f64> = (mask.iter().zip(room.values()))
+                .map(|(&m, &r)| f64::from(u8::from(m && makes_room(r, config))))
+                .collect();
+            let yields = Var::constant(yields, room.rows(), room.cols());
+            Var::select(&yields, &lane.min(&room), &lane)
+        }
+        None => lane,
+    };
     Var::select(&batch.on_ramp, &lane.min(&nearest), &lane)
+}
+
+/// `[batch, agents]`, row-major: where a human target-lane driver may make room for its
+/// nearest leader ([`yields_to`]); None when no driver of the batch ever yields.
+fn yielding_mask(config: &Config, batch: &TensorBatch) -> Option<Vec<bool>> {
+    if !batch.yields.iter().flatten().any(|&y| y) {
+        return None;
+    }
+    let road = Road::new(config);
+    let (mut order, mut nb) = (Vec::new(), Vec::new());
+    let mut mask = Vec::with_capacity(batch.x.rows() * batch.x.cols());
+    for scene in batch.scenes() {
+        find_neighbors(scene, &mut order, &mut nb);
+        mask.extend((0..scene.len()).map(|i| yields_to(&road, scene, i, &nb[i]).is_some()));
+    }
+    Some(mask)
 }
 
 /// Which players a policy drives in a tensor rollout.

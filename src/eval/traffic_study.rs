@@ -7,8 +7,10 @@
 //!   vehicle, ramp and target lane, is controlled by the shared policy.
 //!
 //! Per episode: a collision counts when the first collision involves a controlled vehicle; a
-//! failure when no collision happened and a controlled ramp vehicle is still on the ramp at the
-//! horizon; speed, acceleration and jerk are the means over the controlled vehicles of their
+//! failure when no collision happened and a controlled ramp vehicle that started where the
+//! paper's ego starts (`sampling.ego_position`, 40-120 m before x_c) is still on the ramp at the
+//! horizon, the paper's failure for every such vehicle (one that starts farther back, behind a
+//! queue, may not reach the merge within the horizon whatever it does); speed, acceleration and jerk are the means over the controlled vehicles of their
 //! episode means. Counts are per seed's `eval.test_scenarios` episodes, and every figure is
 //! averaged over the policy seeds.
 
@@ -50,7 +52,8 @@ pub struct TrafficColumn {
     pub controlled: f64,
     /// Episodes whose first collision involves a controlled vehicle.
     pub collisions: f64,
-    /// Episodes without a collision where a controlled ramp vehicle did not merge.
+    /// Episodes without a collision where a controlled ramp vehicle that started where the
+    /// paper's ego starts did not merge.
     pub failures: f64,
     /// Mean speed of the controlled vehicles (m/s).
     pub speed: f64,
@@ -81,12 +84,17 @@ struct EpisodeFigures {
     jerk: f64,
 }
 
-fn figures(scene: &Scene, o: &EpisodeOutcome) -> EpisodeFigures {
+/// The figures of one episode; a failure counts the controlled ramp vehicles that started at
+/// `from` or later.
+fn figures(scene: &Scene, o: &EpisodeOutcome, from: f64) -> EpisodeFigures {
     let controlled: Vec<usize> = (0..scene.len()).filter(|&i| !scene.is_human(i)).collect();
     let collision = o
         .collision
         .is_some_and(|c| !scene.is_human(c.a) || !scene.is_human(c.b));
-    let failure = o.collision.is_none() && controlled.iter().any(|&i| o.final_scene.vehicles[i].on_ramp);
+    let failure = o.collision.is_none()
+        && controlled
+            .iter()
+            .any(|&i| o.final_scene.vehicles[i].on_ramp && scene.vehicles[i].x >= from);
     let mean =
         |f: &dyn Fn(usize) -> f64| controlled.iter().map(|&i| f(i)).sum::<f64>() / controlled.len() as f64;
     let per_step = |i: usize, sum: f64| sum / o.vehicles[i].steps.max(1) as f64;
@@ -127,7 +135,11 @@ pub fn traffic_study(
                 threads,
                 Recording::Summary,
             )?;
-            let per: Vec<EpisodeFigures> = scenes.iter().zip(&outcomes).map(|(s, o)| figures(s, o)).collect();
+            let per: Vec<EpisodeFigures> = scenes
+                .iter()
+                .zip(&outcomes)
+                .map(|(s, o)| figures(s, o, config.sampling.ego_position[0]))
+                .collect();
             let n = per.len() as f64;
             sums[0] += per.iter().map(|f| f.controlled as f64).sum::<f64>() / n;
             sums[1] += per.iter().filter(|f| f.collision).count() as f64;
@@ -235,7 +247,7 @@ mod tests {
             car(240.0, 12.0, false),
             car(150.0, 0.0, true),
         ]);
-        let f = figures(&scene, &outcome(end.clone(), None, [10.0, 14.0, 2.0]));
+        let f = figures(&scene, &outcome(end.clone(), None, [10.0, 14.0, 2.0]), 60.0);
         // The human's speed and its unmerged state do not count: no failure, mean speed 12.
         assert_eq!(f.controlled, 2);
         assert!(!f.collision && !f.failure);
@@ -245,11 +257,13 @@ mod tests {
         // A collision between the human and a controlled car counts; one between two humans
         // would not.
         let hit = Some(Collision { step: 2, a: 1, b: 2 });
-        assert!(figures(&scene, &outcome(end.clone(), hit, [10.0; 3])).collision);
+        assert!(figures(&scene, &outcome(end.clone(), hit, [10.0; 3]), 60.0).collision);
         scene.humans = vec![false, true, true];
-        assert!(!figures(&scene, &outcome(end.clone(), hit, [10.0; 3])).collision);
-        // A controlled ramp car left on the ramp is a failure.
+        assert!(!figures(&scene, &outcome(end.clone(), hit, [10.0; 3]), 60.0).collision);
+        // A controlled ramp car left on the ramp is a failure when it started at 90 m, where
+        // the paper's ego may start (from 60 m), and not when it started farther back.
         scene.humans = vec![false, false, false];
-        assert!(figures(&scene, &outcome(end, None, [10.0; 3])).failure);
+        assert!(figures(&scene, &outcome(end.clone(), None, [10.0; 3]), 60.0).failure);
+        assert!(!figures(&scene, &outcome(end, None, [10.0; 3]), 95.0).failure);
     }
 }

@@ -3,14 +3,14 @@
 //!
 //! Every seed of a study is trained by Algorithm 1 from another initialisation and lands on
 //! another approximate equilibrium; in SUMO traffic the seeds of one set differ more than the
-//! deployments they are compared across (`docs/traffic_acceptance.md`). `mpgdrive cosim`
+//! deployments they are compared across (`docs/experiments.md`). `mpgdrive cosim`
 //! deploys the median of a set's seeds by default, one policy shared by every vehicle it drives
 //! as a single network is; `--ensemble mean` takes their mean and `--policy-seed` one seed.
 //! The median follows the seeds that agree: with the mean, one seed that brakes where the
 //! others do not slows every vehicle (on `i80_merge` at demand 1.2, one traffic seed alone
 //! drove its egos at 6.1 m/s in the game, the others at 8.1-10.0). Over the acceptance grid's
 //! 12 rows at demand 1.2 the shipped set's median was faster than its mean in 10
-//! (docs/traffic_acceptance.md section 0o); for another training of the traffic set it held
+//! (docs/experiments.md); for another training of the traffic set it held
 //! fewer rows than the mean: no general gain.
 //!
 //! The forward pass is plain Rust over `f32` weights copied out of the networks at load time:

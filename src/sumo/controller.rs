@@ -107,7 +107,7 @@ pub struct ControlModes {
     /// lane-change model accepts. With 256 alone the egos did not signal, nobody made room,
     /// and on `single_lane_merge` at demand 1.2 an ego braking for the lane's end beside the
     /// 17 m/s lane was moved at x_c in front of a car closing at 8.6 m/s (12-15% of the egos
-    /// in an SSM conflict against 0% with 257; docs/traffic_acceptance.md section 0f).
+    /// in an SSM conflict against 0% with 257; docs/experiments.md).
     pub lane_change: i32,
     /// Lane-change mode bits of the target-lane players it drives (1621, SUMO's default: they
     /// keep SUMO's own lane changes, so a player may move out of the target lane as SUMO's
@@ -956,7 +956,7 @@ impl Controller {
     /// bumper gap of `sim.safety_gap` only, below what SUMO needs for the lane change, and
     /// the two drove side by side to the acceleration lane's end (`i80_merge`, the game,
     /// demand 1.0, SUMO seed 2: 13% of the egos in an SSM conflict, 7% with it; section 0y
-    /// of docs/traffic_acceptance.md). With a time gap in the projection
+    /// of docs/experiments.md). With a time gap in the projection
     /// (`sim.time_headway`) there is no margin: the gap settles at `safety_gap + h v`, above
     /// SUMO's `minGap` at any speed but a crawl, and the margin only held the egos back
     /// (`i80_merge`, demand 1.2, no SUMO safe speed: ego only at 0.83-0.87 of SUMO's

@@ -1,6 +1,7 @@
 //! Non-learning drivers: IDM behind the leader a driver follows, and constant speed.
 
 use crate::config::Config;
+use crate::world::geometry::Road;
 use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::neighbors::Neighbors;
 use crate::world::state::Scene;
@@ -11,7 +12,10 @@ use crate::world::step::neighbor_of;
 pub enum Driver {
     /// Intelligent Driver Model: behind the same-lane leader; on the ramp also behind the
     /// nearest leader by distance to the conflict point (the vehicle it will merge behind),
-    /// whichever asks for less acceleration.
+    /// whichever asks for less acceleration; in the target lane, a driver who yields
+    /// ([`yields_to`]) also behind the ramp vehicle it makes room for (as if it were
+    /// [`yield_length`] long), when braking at `sim.b_safe` or less does it ([`makes_room`]);
+    /// a driver too close for that drives on past it.
     Idm,
     /// Zero acceleration.
     ConstSpeed,
@@ -24,25 +28,114 @@ pub fn driver_accel(config: &Config, driver: Driver, scene: &Scene, i: usize, n:
         Driver::Idm => {
             let me = &scene.vehicles[i];
             let v0 = scene.v_desired.map(|d| idm_v0(config, Some(d)));
-            let behind = |leader: Option<usize>| {
+            let behind_by = |leader: Option<usize>, length: f64| {
                 let leader = neighbor_of(scene, leader, me);
-                idm_accel(
-                    &me.x,
-                    &me.v,
-                    &leader,
-                    config.vehicle.length,
-                    &config.idm,
-                    v0.as_ref(),
-                )
+                idm_accel(&me.x, &me.v, &leader, length, &config.idm, v0.as_ref())
             };
+            let behind = |leader: Option<usize>| behind_by(leader, config.vehicle.length);
             let lane = behind(n.lane_leader);
             // IDM behind a missing leader is the free-road acceleration, the largest: alone on
             // the ramp (the paper's ego) only the nearest leader counts.
             if me.on_ramp {
                 lane.min(behind(n.leader))
+            } else if let Some(j) = yields_to(&Road::new(config), scene, i, n) {
+                let room = behind_by(Some(j), yield_length(config));
+                if makes_room(room, config) {
+                    lane.min(room)
+                } else {
+                    lane
+                }
             } else {
                 lane
             }
         }
+    }
+}
+
+/// The length a yielding driver gives the ramp vehicle it makes room for: its own plus
+/// `sim.safety_gap`, so that even stopped behind it (IDM's `s0`) it leaves more than the entry
+/// rule's clearance.
+pub fn yield_length(config: &Config) -> f64 {
+    config.vehicle.length + config.sim.safety_gap
+}
+
+/// Whether a yielding driver whose IDM acceleration behind the ramp vehicle would be `room`
+/// makes room for it: only when that asks no harder braking than `sim.b_safe` (SUMO's drivers
+/// cooperate within their comfortable deceleration). One already too close drives on past it,
+/// rather than stop beside it and block its entry.
+pub fn makes_room(room: f64, config: &Config) -> bool {
+    room >= -config.sim.b_safe
+}
+
+/// The ramp vehicle a human target-lane driver `i` makes room for, as SUMO's drivers do for a
+/// vehicle that signals: its nearest leader, when that is a ramp vehicle in the merge zone and
+/// `i` is a yielding human ([`Scene::is_yielding`], `traffic.cooperation`).
+pub fn yields_to(road: &Road, scene: &Scene, i: usize, n: &Neighbors) -> Option<usize> {
+    let j = n.leader?;
+    let other = &scene.vehicles[j];
+    let yields =
+        scene.is_yielding(i) && !scene.vehicles[i].on_ramp && other.on_ramp && road.in_merge_zone(other.x);
+    yields.then_some(j)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::world::merge_gate::{GateRules, lane_change_is_safe};
+    use crate::world::neighbors::find_neighbors;
+    use crate::world::state::test_car as at;
+
+    fn traffic_config() -> Config {
+        let text =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/traffic.toml")).unwrap();
+        Config::parse(&text, "traffic.toml").unwrap()
+    }
+
+    /// The IDM acceleration of human 1 behind ramp vehicle 0, yielding or not.
+    fn accel(config: &Config, ramp: (f64, f64), human: (f64, f64), yields: bool) -> f64 {
+        let scene = Scene {
+            vehicles: vec![at(ramp.0, ramp.1, true), at(human.0, human.1, false)],
+            humans: vec![false, true],
+            yields: vec![yields; 2],
+            v_desired: None,
+        };
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&scene, &mut order, &mut nb);
+        driver_accel(config, Driver::Idm, &scene, 1, &nb[1])
+    }
+
+    #[test]
+    fn a_yielding_driver_makes_room_for_a_ramp_vehicle_in_the_merge_zone_ahead() {
+        // configs/traffic.toml: x_c 180, merge zone 40 m, IDM v0 15, T 1.5 s, s0 2 m, a 1, b 1.5.
+        let config = traffic_config();
+        // Free road at 10 m/s: 1 - (10/15)^4 = 0.802469.
+        let free = 1.0 - (10.0f64 / 15.0).powi(4);
+        assert!((accel(&config, (150.0, 10.0), (130.0, 10.0), false) - free).abs() < 1e-12);
+        // Yielding, behind the ramp vehicle at 150 as if it were 7 m long: gap 13 m, s* = 2 +
+        // 10 * 1.5 = 17 m, so 1 - 0.197531 - (17/13)^2 = -0.907590.
+        let room = 1.0 - (10.0f64 / 15.0).powi(4) - (17.0f64 / 13.0).powi(2);
+        assert!((accel(&config, (150.0, 10.0), (130.0, 10.0), true) - room).abs() < 1e-12);
+        assert!((room + 0.907590).abs() < 1e-6);
+        // Not for a ramp vehicle before the merge zone (140 m), nor one behind it.
+        assert!((accel(&config, (135.0, 10.0), (115.0, 10.0), true) - free).abs() < 1e-12);
+        assert!((accel(&config, (150.0, 10.0), (155.0, 10.0), true) - free).abs() < 1e-12);
+        // Never harder than b_safe (4 m/s^2): 7.5 m behind a stopped ramp vehicle at 10 m/s it
+        // would need far more (gap 0.5 m against s* = 2 + 15 + 10 * 10 / (2 sqrt 1.5) = 57.8 m),
+        // so it drives on past it, at the free-road acceleration.
+        assert!((accel(&config, (140.5, 0.0), (133.0, 10.0), true) - free).abs() < 1e-12);
+        assert!(!makes_room(-4.01, &config) && makes_room(-4.0, &config));
+    }
+
+    #[test]
+    fn a_yielding_driver_stopped_behind_a_waiting_ramp_vehicle_leaves_it_room_to_enter() {
+        // Stopped 9 m behind a ramp vehicle waiting at the ramp's end (179.9 m): IDM's s0 = 2 m
+        // behind a 7 m vehicle, so it stays (1 - 0 - (2/2)^2 = 0) and the bumper gap, 4 m, leaves
+        // 2 m beyond the entry rule's 7 m clearance: the ramp vehicle may enter.
+        let config = traffic_config();
+        assert_eq!(accel(&config, (179.9, 0.0), (170.9, 0.0), true), 0.0);
+        let scene = Scene::new(vec![at(179.9, 0.0, true), at(170.9, 0.0, false)]);
+        assert!(lane_change_is_safe(&scene, 0, &GateRules::new(&config)));
+        let closer = Scene::new(vec![at(179.9, 0.0, true), at(172.9, 0.0, false)]);
+        assert!(!lane_change_is_safe(&closer, 0, &GateRules::new(&config)));
     }
 }

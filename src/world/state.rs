@@ -27,6 +27,9 @@ pub struct Scene {
     /// Which vehicles a human (IDM) drives in merge traffic, by index: not players of the
     /// game, whatever drives the others. Empty: none.
     pub humans: Vec<bool>,
+    /// Which vehicles, when a human drives them, make room for a ramp vehicle in the merge zone
+    /// ahead of them (`traffic.cooperation`), by index. Empty: none.
+    pub yields: Vec<bool>,
     /// The scene's desired speed `v_d` (m/s): the speed the reward's speed term tracks, and
     /// (scaled by `v_d / reward.v_desired`) the IDM drivers' `v0`. None: the configuration's
     /// `reward.v_desired` (the paper's world). Merge traffic draws it per scene
@@ -40,6 +43,7 @@ impl Scene {
         Scene {
             vehicles,
             humans: Vec::new(),
+            yields: Vec::new(),
             v_desired: None,
         }
     }
@@ -52,6 +56,11 @@ impl Scene {
     /// Whether a human (IDM) drives vehicle `i`.
     pub fn is_human(&self, i: usize) -> bool {
         self.humans.get(i).copied().unwrap_or(false)
+    }
+
+    /// Whether vehicle `i` is a human driver who makes room for a ramp vehicle ahead.
+    pub fn is_yielding(&self, i: usize) -> bool {
+        self.is_human(i) && self.yields.get(i).copied().unwrap_or(false)
     }
 
     /// Number of players.

@@ -8,7 +8,10 @@
 //!    `sampling.ego_speed` (ramp), and the share of human drivers uniform in `human_share`;
 //! 2. the ego (vehicle 0) on the ramp, stratified in position and speed as the paper's ego is;
 //! 3. the other ramp vehicles as a stream through the ego: a uniform number of them ahead of
-//!    it (those that would reach `x_c - 2 m` go behind instead), the rest behind;
+//!    it (those that would reach `x_c - 2 m` go behind instead), the rest behind; under the
+//!    entry rule every ramp vehicle, the ego too, starts slow enough to stop 2 m before the
+//!    ramp's end braking at `sim.b_safe` (a faster one is capped, one ahead of the ego goes
+//!    behind it instead);
 //! 4. the target lane as a stream through the conflict point: `ahead_share` of its vehicles
 //!    from a point up to one headway past `x_c` onwards, the rest behind it.
 //!
@@ -26,13 +29,13 @@
 //! h_c / min_ttc) / (1 + h / min_ttc)` for a centre headway `h_c`. Drawn without it, the
 //! target lane started far inside the time gaps it then had to open (7 m centre headways at
 //! 8-20 m/s), and training's probe potential did not improve in 90 epochs (measured with an
-//! earlier form of the projection; `docs/traffic_acceptance.md`, section 0a).
+//! earlier form of the projection; `docs/experiments.md`).
 //!
 //! With `desired_speed`, the scene's desired speed `v_d` is drawn first, uniform in its range,
 //! and every speed range above (streams, spreads' bounds, the ego's strata) is scaled by
 //! `v_d / reward.v_desired` (capped at `vehicle.v_max`): the same traffic on a faster road.
 
-use crate::config::{Config, TrafficConfig};
+use crate::config::{Config, Entry, TrafficConfig};
 use crate::world::geometry::Road;
 use crate::world::sampler::{scenario_rng, stratified_ego};
 use crate::world::state::{Scene, Vehicle};
@@ -152,9 +155,16 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
         on_ramp,
     };
 
+    // Under the entry rule a ramp vehicle starts where it can still stop before the ramp's end
+    // braking at b_safe (a faster one could only be forced in); the paper's entry needs no cap.
+    let stoppable = |x: f64| match config.scenario.entry {
+        Entry::Gap => (2.0 * config.sim.b_safe * (road.ramp_end() - RAMP_END_MARGIN - x).max(0.0)).sqrt(),
+        Entry::ConflictPoint => f64::INFINITY,
+    };
+
     // The ego, stratified as the paper's.
     let (ego_x, ego_v) = stratified_ego(config, index, &mut rng);
-    let ego_v = (ego_v * k).min(v_max);
+    let ego_v = (ego_v * k).min(v_max).min(stoppable(ego_x));
     let mut vehicles = vec![car(ego_x, ego_v, true)];
 
     // The ramp stream: some ahead of the ego (front-most last), the rest behind.
@@ -170,6 +180,9 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
         let v_ahead = ramp
             .speed(&mut rng, ramp_speed, &rules, None)
             .max(rules.least_ahead(v, h));
+        if v_ahead > stoppable(x + h) {
+            break;
+        }
         x += h;
         v = v_ahead;
         ramp_ahead.push(car(x, v, true));
@@ -178,7 +191,9 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
     let (mut x, mut v) = (ego_x, ego_v);
     for _ in ramp_ahead.len()..others {
         let h = ramp.headway(&mut rng);
-        v = ramp.speed(&mut rng, ramp_speed, &rules, Some((v, h)));
+        v = ramp
+            .speed(&mut rng, ramp_speed, &rules, Some((v, h)))
+            .min(stoppable(x - h));
         x -= h;
         vehicles.push(car(x, v, true));
     }
@@ -205,9 +220,15 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
     let humans = (0..vehicles.len())
         .map(|i| i > 0 && rng.random::<f64>() < human_share)
         .collect();
+    // Drawn last, so that the draws above do not depend on it.
+    let cooperation = uniform(&mut rng, traffic.cooperation);
+    let yields = (0..vehicles.len())
+        .map(|_| rng.random::<f64>() < cooperation)
+        .collect();
     Scene {
         vehicles,
         humans,
+        yields,
         v_desired,
     }
 }
@@ -259,6 +280,12 @@ mod tests {
             let ramp: Vec<&Vehicle> = s.vehicles.iter().filter(|v| v.on_ramp).collect();
             assert_eq!(ramp.len(), t.ramp_vehicles);
             assert!(ramp.iter().all(|v| v.x < x_c - RAMP_END_MARGIN + 1e-9));
+            // Under the entry rule each can stop 2 m before the ramp's end (x_c here) at b_safe.
+            let b = config.sim.b_safe;
+            assert!(
+                ramp.iter()
+                    .all(|v| v.v * v.v / (2.0 * b) <= x_c - RAMP_END_MARGIN - v.x + 1e-9)
+            );
             ramp_leaders += usize::from(ramp.iter().any(|v| v.x > s.ego().x));
             for (_, (x_ahead, v_ahead), (x, v)) in successive_pairs(&s) {
                 let (h, closing) = (x_ahead - x, v - v_ahead);
