@@ -10,9 +10,9 @@
 //! failure when no collision happened and a controlled ramp vehicle that started where the
 //! paper's ego starts (`sampling.ego_position`, 40-120 m before x_c) is still on the ramp at the
 //! horizon, the paper's failure for every such vehicle (one that starts farther back, behind a
-//! queue, may not reach the merge within the horizon whatever it does); speed, acceleration and jerk are the means over the controlled vehicles of their
-//! episode means. Counts are per seed's `eval.test_scenarios` episodes, and every figure is
-//! averaged over the policy seeds.
+//! queue, may not reach the merge within the horizon whatever it does); speed, acceleration and
+//! jerk are the means over the controlled vehicles of their episode means. Counts are per
+//! seed's `eval.test_scenarios` episodes, and every figure is averaged over the policy seeds.
 
 use crate::config::Config;
 use crate::engine::outcome::EpisodeOutcome;
