@@ -117,7 +117,8 @@ pub struct TrafficConfig {
     pub ahead_share: f64,
     /// Range of the share of human drivers that make room for a ramp vehicle in the merge zone
     /// just ahead of them, as SUMO's drivers do for one that signals (IDM behind it, when
-    /// braking at `sim.b_safe` or less does it); the others never do. Drawn per episode; `[0, 0]` (the default): none.
+    /// braking at `sim.b_safe` or less does it); the others never do. Drawn per episode;
+    /// `[0, 0]` (the default): none.
     #[serde(default)]
     pub cooperation: [f64; 2],
     /// Range of each episode's desired speed `v_d` (m/s): the reward tracks it, and the

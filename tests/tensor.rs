@@ -266,7 +266,7 @@ fn yielding_steps(config: &Config) -> usize {
             };
             find_neighbors(&now, &mut order, &mut nb);
             count += (0..now.len())
-                .filter(|&i| yields_to(&road, &now, i, &nb[i]).is_some())
+                .filter(|&i| yields_to(&road, &now, i, nb[i].leader).is_some())
                 .count();
         }
     }

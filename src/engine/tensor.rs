@@ -202,6 +202,12 @@ impl NeighborIndex {
         }
     }
 
+    /// The nearest leader (any lane) of element `k` (`b * agents + i`), if any.
+    pub fn leader(&self, k: usize) -> Option<usize> {
+        let w = Which::Leader as usize;
+        (self.present[w].values()[k] > 0.5).then(|| self.index[w][k])
+    }
+
     /// The chosen neighbour's position, speed and presence, gathered from the batch.
     pub fn get(&self, batch: &TensorBatch, which: Which) -> Neighbor<Var> {
         let k = which as usize;
@@ -221,10 +227,11 @@ pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> 
         idm_accel(&batch.x, &batch.v, leader, length, &config.idm, v0.as_ref())
     };
     let lane = behind(&nb.get(batch, Which::LaneLeader), config.vehicle.length);
-    let nearest = behind(&nb.get(batch, Which::Leader), config.vehicle.length);
-    let lane = match yielding_mask(config, batch) {
+    let leader = nb.get(batch, Which::Leader);
+    let nearest = behind(&leader, config.vehicle.length);
+    let lane = match yielding_mask(config, batch, nb) {
         Some(mask) => {
-            let room = behind(&nb.get(batch, Which::Leader), yield_length(config));
+            let room = behind(&leader, yield_length(config));
             let yields: Vec<f64> = (mask.iter().zip(room.values()))
                 .map(|(&m, &r)| f64::from(u8::from(m && makes_room(r, config))))
                 .collect();
@@ -238,16 +245,15 @@ pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> 
 
 /// `[batch, agents]`, row-major: where a human target-lane driver may make room for its
 /// nearest leader ([`yields_to`]); None when no driver of the batch ever yields.
-fn yielding_mask(config: &Config, batch: &TensorBatch) -> Option<Vec<bool>> {
+fn yielding_mask(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> Option<Vec<bool>> {
     if !batch.yields.iter().flatten().any(|&y| y) {
         return None;
     }
     let road = Road::new(config);
-    let (mut order, mut nb) = (Vec::new(), Vec::new());
-    let mut mask = Vec::with_capacity(batch.x.rows() * batch.x.cols());
-    for scene in batch.scenes() {
-        find_neighbors(scene, &mut order, &mut nb);
-        mask.extend((0..scene.len()).map(|i| yields_to(&road, scene, i, &nb[i]).is_some()));
+    let n = batch.x.cols();
+    let mut mask = Vec::with_capacity(batch.x.rows() * n);
+    for (b, scene) in batch.scenes().iter().enumerate() {
+        mask.extend((0..n).map(|i| yields_to(&road, scene, i, nb.leader(b * n + i)).is_some()));
     }
     Some(mask)
 }
@@ -301,28 +307,28 @@ pub fn apply_limits(
 /// The merge gate on `a`: ramp players it holds get `min(a, stop bound)` (every player with
 /// `sim.merge_gate`, else the human drivers only).
 fn merge_gate(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
-    let closed: Vec<f64> = batch
-        .scenes()
-        .iter()
-        .flat_map(|s| {
-            (0..s.len()).map(move |i| {
-                let gated = rules.merge_gate || s.is_human(i);
-                f64::from(u8::from(gated && gate_holds(s, i, &rules.gate)))
-            })
-        })
-        .collect();
-    let closed = Var::constant(closed, batch.x.rows(), batch.x.cols());
-    let bound = stop_bound(&batch.x, &batch.v, &rules.gate);
-    Var::select(&closed, &a.min(&bound), a)
+    held_at_stop_bound(rules, batch, a, |s, i| {
+        (rules.merge_gate || s.is_human(i)) && gate_holds(s, i, &rules.gate)
+    })
 }
 
 /// The entry rule's lane end on `a`: ramp players it holds
 /// ([`crate::world::merge_gate::lane_end_holds`]) get `min(a, stop bound)`, every player.
 fn hold_at_lane_end(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
+    held_at_stop_bound(rules, batch, a, |s, i| lane_end_holds(s, i, &rules.gate))
+}
+
+/// `min(a, stop bound)` for the players `holds` names in their scene, `a` for the others.
+fn held_at_stop_bound(
+    rules: &WorldRules,
+    batch: &TensorBatch,
+    a: &Var,
+    holds: impl Fn(&Scene, usize) -> bool,
+) -> Var {
     let held: Vec<f64> = batch
         .scenes()
         .iter()
-        .flat_map(|s| (0..s.len()).map(move |i| f64::from(u8::from(lane_end_holds(s, i, &rules.gate)))))
+        .flat_map(|s| (0..s.len()).map(|i| f64::from(u8::from(holds(s, i)))))
         .collect();
     let held = Var::constant(held, batch.x.rows(), batch.x.cols());
     let bound = stop_bound(&batch.x, &batch.v, &rules.gate);

@@ -38,7 +38,7 @@ pub fn driver_accel(config: &Config, driver: Driver, scene: &Scene, i: usize, n:
             // the ramp (the paper's ego) only the nearest leader counts.
             if me.on_ramp {
                 lane.min(behind(n.leader))
-            } else if let Some(j) = yields_to(&Road::new(config), scene, i, n) {
+            } else if let Some(j) = yields_to(&Road::new(config), scene, i, n.leader) {
                 let room = behind_by(Some(j), yield_length(config));
                 if makes_room(room, config) {
                     lane.min(room)
@@ -68,10 +68,10 @@ pub fn makes_room(room: f64, config: &Config) -> bool {
 }
 
 /// The ramp vehicle a human target-lane driver `i` makes room for, as SUMO's drivers do for a
-/// vehicle that signals: its nearest leader, when that is a ramp vehicle in the merge zone and
-/// `i` is a yielding human ([`Scene::is_yielding`], `traffic.cooperation`).
-pub fn yields_to(road: &Road, scene: &Scene, i: usize, n: &Neighbors) -> Option<usize> {
-    let j = n.leader?;
+/// vehicle that signals: its nearest leader (any lane), when that is a ramp vehicle in the merge
+/// zone and `i` is a yielding human ([`Scene::is_yielding`], `traffic.cooperation`).
+pub fn yields_to(road: &Road, scene: &Scene, i: usize, leader: Option<usize>) -> Option<usize> {
+    let j = leader?;
     let other = &scene.vehicles[j];
     let yields =
         scene.is_yielding(i) && !scene.vehicles[i].on_ramp && other.on_ramp && road.in_merge_zone(other.x);
