@@ -189,6 +189,11 @@ def summary():
         rows.append("| the same, mixed surroundings (every non-human vehicle on the policy) "
                     f"| {per_seed(5)} | `traffic.md` |")
     for kind, what in (("grid", "SUMO, bundled networks"), ("zoo", "SUMO, merge zoo")):
+        path = os.path.join(RESULTS, f"{kind}.md")
+        if os.path.isfile(path):
+            speed_mode = cell(r"^- merge gate .*SUMO speed mode (\d+)", open(path).read())
+            what += (" (policy alone: SUMO's safe speed off)" if speed_mode == "0"
+                     else " (shielded: SUMO's safe speed on, cosim's default)")
         held = deployments(kind)
         if held:
             rows.append(f"| {what}: deployments meeting every check against SUMO's drivers "
