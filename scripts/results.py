@@ -180,6 +180,12 @@ def summary():
         rows.append(f"| Scenario {preset}: policy seeds whose ego merges between {a} and {b}, as "
                     f"in the paper | {sum(c == f'{a}-{b}' for c in cells)} of {len(cells)} | "
                     "`paper.md` |")
+        part = paper_md.split(f"Scenario {preset}: ", 1)[-1]
+        shares = re.findall(r"^\| \d+ \| \d+ \((\d+)%\) \|", part.split("seeds merge where")[0], re.M)
+        n = re.search(r"(\d+) states drawn", part)
+        rows.append(f"| Scenario {preset}, {n.group(1) if n else '?'} states drawn from its description: "
+                    f"share with the paper's outcome by seed | {' / '.join(s + '%' for s in shares)} "
+                    "| `paper.md` |")
     traffic_md = os.path.join(RESULTS, "traffic.md")
     if os.path.isfile(traffic_md):
         mpg = [line.split("|")[1:-1] for line in open(traffic_md) if line.startswith("| mpg |")]

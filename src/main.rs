@@ -8,6 +8,13 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // SAFETY: the first statement of main: no other thread exists and libtorch has run nothing.
+    if !unsafe { mpgdrive::policy::kernels::pin() } {
+        eprintln!(
+            "warning: this processor has no AVX2: libtorch runs its baseline kernels, and a \
+             training gives other weights than the shipped ones (docs/REPRODUCIBILITY.md)"
+        );
+    }
     let cli = cli::Cli::parse();
     match cli::run(cli) {
         Ok(code) => code,

@@ -169,6 +169,52 @@ fn scenario_and_report_commands_write_their_pictures() {
             assert!(pair.iter().all(|p| p.as_u64().unwrap() <= 8), "{record}");
         }
     }
+    // The described states: every seed's episodes, each counted where it merged.
+    let o = bin()
+        .args([
+            "scenario",
+            "--config",
+            "configs/smoke.toml",
+            "--preset",
+            "2",
+            "--states",
+            "3",
+            "--out",
+        ])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("preset2_states.json")).unwrap()).unwrap();
+    let (seeds, summaries) = (
+        record["seeds"].as_array().unwrap(),
+        record["summaries"].as_array().unwrap(),
+    );
+    assert_eq!(
+        (
+            seeds.len(),
+            summaries.len(),
+            record["states"].as_array().unwrap().len()
+        ),
+        (5, 5, 3)
+    );
+    for (seed, summary) in seeds.iter().zip(summaries) {
+        let episodes = seed["episodes"].as_array().unwrap();
+        let paper = episodes
+            .iter()
+            .filter(|e| e["merged_between"] == serde_json::json!([5, 6]))
+            .count();
+        assert_eq!(
+            (summary["states"].as_u64(), summary["paper_outcomes"].as_u64()),
+            (Some(3), Some(paper as u64))
+        );
+    }
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("| seed | paper's outcome |") && stdout.contains("of 5 seeds merge"),
+        "{stdout}"
+    );
     let bad = bin()
         .args(["scenario", "--preset", "3", "--out"])
         .arg(&dir)

@@ -379,3 +379,39 @@ fn screening_keeps_the_initialisation_with_the_best_probe_objective() {
         "the candidates differ: {objectives:?}"
     );
 }
+
+/// The smoke training through the command line, with `env` added; the weights' bytes.
+fn trained_bytes(name: &str, env: &[(&str, &str)]) -> Vec<u8> {
+    let dir = out_dir(name);
+    let out = common::bin()
+        .args(["train", "--config", "configs/smoke.toml", "--seeds", "0", "--out"])
+        .arg(&dir)
+        .envs(env.iter().copied())
+        .env_remove("MKL_CBWR")
+        .env_remove("ATEN_CPU_CAPABILITY")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::read(dir.join("seed0.safetensors")).unwrap()
+}
+
+#[test]
+fn training_gives_the_same_bytes_whichever_vector_instructions_the_processor_offers() {
+    // MKL_ENABLE_INSTRUCTIONS=AVX2 makes MKL take the path of a processor without AVX-512;
+    // SSE4_2 that of an older one. Pinned (the default), the weights are the same bytes.
+    let avx2 = [("MKL_ENABLE_INSTRUCTIONS", "AVX2")];
+    let sse = [("MKL_ENABLE_INSTRUCTIONS", "SSE4_2")];
+    let own = trained_bytes("pinned-own", &[]);
+    assert_eq!(own, trained_bytes("pinned-avx2", &avx2));
+    assert_eq!(own, trained_bytes("pinned-sse", &sse));
+    // The check can fail: with each library's own kernels, a processor with AVX-512 (this
+    // one, if it has it) trains other weights than its AVX2 path.
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        let native = [(mpgdrive::policy::kernels::OPT_OUT, "native")];
+        let native_avx2 = [native[0], avx2[0]];
+        assert_ne!(
+            trained_bytes("native-own", &native),
+            trained_bytes("native-avx2", &native_avx2)
+        );
+    }
+}

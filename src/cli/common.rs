@@ -134,7 +134,7 @@ pub fn print(text: &str) -> Result<()> {
 }
 
 /// The policies of a file or a directory of seeds, sorted by seed: `seed`'s alone when given.
-fn select_policies(path: &Path, seed: Option<u64>, config: &Config) -> Result<Vec<(PolicyNet, Sidecar)>> {
+pub fn select_policies(path: &Path, seed: Option<u64>, config: &Config) -> Result<Vec<(PolicyNet, Sidecar)>> {
     let policies = load_policies(path, config, Rules::Same)?;
     let Some(s) = seed else {
         return Ok(policies);

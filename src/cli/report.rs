@@ -1,11 +1,12 @@
 //! `mpgdrive report`: one folder with the tables, the figures and the commands that made them.
 
 use crate::cli::common::{PolicyPair, print, threads, usage};
-use crate::cli::scenario::scenario;
+use crate::cli::scenario::{described_seeds, scenario};
 use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
+use mpgdrive::eval::scenario_sets::{DESCRIBED_STATES, markdown};
 use mpgdrive::eval::study::{Study, Surrounding, evaluate};
 use mpgdrive::policy::file::Sidecar;
 use mpgdrive::policy::{Mode, PolicyNet};
@@ -146,8 +147,9 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let all = [Surrounding::Ne, Surrounding::Idm, Surrounding::Const];
     let marl = evaluate(&config, &mpg, &[], &all, threads)?;
     let single = evaluate(&config, &sarl, &mpg, &all, threads)?;
-    study_section(&mut doc, &ctx, &marl, &single)?;
-    scenarios_section(&mut doc, &ctx)?;
+    let claims = study_section(&mut doc, &ctx, &marl, &single)?;
+    let families = scenarios_section(&mut doc, &ctx)?;
+    atomic::write(&args.out.join("claims.md"), format!("{claims}\n{families}"))?;
     training_section(&mut doc, &ctx, (&mpg, &sarl), (&marl, &single))?;
     // Co-simulation, NGSIM and batch, when present.
     cosim_section(&mut doc, &args.cosim, &ctx.figures)?;
@@ -215,8 +217,8 @@ fn check_inputs(args: &ReportArgs, policies: &[PathBuf; 2]) -> Result<()> {
     Ok(())
 }
 
-/// Tables II and III.
-fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Study) -> Result<()> {
+/// Tables II and III; returns the claims' table.
+fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Study) -> Result<String> {
     let (args, exe, cfg) = (ctx.args, EXE, &ctx.cfg);
     doc.push(Block::Heading(2, "Statistical study (Tables II and III)".into()));
     let sim = &ctx.config.sim;
@@ -246,15 +248,16 @@ fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Stud
     doc.push(Block::Heading(3, "The paper's claims".into()));
     let claims = mpgdrive::eval::claims::markdown(&mpgdrive::eval::claims::check(marl, single));
     include_markdown(doc, &claims);
-    atomic::write(&args.out.join("claims.md"), &claims)?;
     atomic::write(&args.out.join("table2.md"), marl.markdown())?;
     atomic::write(&args.out.join("table3.md"), single.markdown())?;
 
-    Ok(())
+    Ok(claims)
 }
 
-/// The paper's specific scenarios, run with the MARL policy and drawn.
-fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<()> {
+/// The paper's specific scenarios, run with the MARL policy and drawn, then as distributions
+/// (every seed over the states drawn from each description); returns the distributions'
+/// tables.
+fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<String> {
     let (args, exe, cfg) = (ctx.args, EXE, &ctx.cfg);
     doc.push(Block::Heading(2, "Specific scenarios".into()));
     for preset in [Preset::One, Preset::Two] {
@@ -289,7 +292,19 @@ fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<()> {
         )));
     }
 
-    Ok(())
+    doc.push(Block::Heading(3, "The scenarios as distributions".into()));
+    let mut families = String::from("## The paper's scenarios as distributions\n");
+    for preset in [Preset::One, Preset::Two] {
+        let (summaries, _) = described_seeds(ctx.config, preset, &ctx.policies[0], None, DESCRIBED_STATES)?;
+        let table = markdown(preset, &summaries);
+        include_markdown(doc, &table);
+        families += &format!("\n{table}");
+    }
+    doc.push(Block::Code(format!(
+        "{exe} scenario --config {cfg} --preset K --policy {} --states {DESCRIBED_STATES}",
+        ctx.policies[0].display()
+    )));
+    Ok(families)
 }
 
 /// Training curves (Figures 7 and 8) and the ego's return in training and testing.

@@ -1,12 +1,13 @@
 //! `mpgdrive scenario`: the paper's specific scenarios, run with the shared policy and drawn.
 
-use crate::cli::common::{pick_policy, print};
+use crate::cli::common::{pick_policy, print, select_policies};
 use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
 use mpgdrive::engine::rollout::Recording;
 use mpgdrive::eval::EpisodeMetrics;
+use mpgdrive::eval::scenario_sets::{SeedSummary, described, markdown};
 use mpgdrive::policy::drive::{Others, policy_rollout};
 use mpgdrive::render::episode::render_episode;
 use mpgdrive::world::scenarios::Preset;
@@ -32,6 +33,11 @@ pub struct ScenarioArgs {
     /// Output directory.
     #[arg(long, default_value = "results/scenarios")]
     out: PathBuf,
+    /// Instead of the preset's one state, run this many states drawn from the scenario's
+    /// description in the paper, for every seed of the policy directory (or `--policy-seed`'s),
+    /// and report the share that ends as the paper's does.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=10_000))]
+    states: Option<u64>,
 }
 
 /// Runs a preset and draws it; returns the files written and a one-line outcome.
@@ -105,17 +111,61 @@ pub fn run(args: ScenarioArgs) -> Result<ExitCode> {
     } else {
         Preset::Two
     };
-    let (files, summary) = scenario(
-        &config,
-        preset,
-        &crate::cli::bundled::resolve(&args.policy)?,
-        args.policy_seed,
-        &args.out,
-    )?;
+    let policy = crate::cli::bundled::resolve(&args.policy)?;
+    if let Some(n) = args.states {
+        return described_states(&config, preset, &policy, args.policy_seed, n as usize, &args.out);
+    }
+    let (files, summary) = scenario(&config, preset, &policy, args.policy_seed, &args.out)?;
     let mut text = summary;
     for f in files {
         text += &format!("\n  {}", f.display());
     }
     print(&text)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Each seed's summary of `preset`'s first `n` described states, and the JSON record of every
+/// episode.
+pub fn described_seeds(
+    config: &Config,
+    preset: Preset,
+    policy: &Path,
+    seed: Option<u64>,
+    n: usize,
+) -> Result<(Vec<SeedSummary>, serde_json::Value)> {
+    let mut summaries = Vec::new();
+    let mut seeds = Vec::new();
+    for (net, sidecar) in select_policies(policy, seed, config)? {
+        let episodes = described(config, &net, preset, n, config.train.threads)?;
+        summaries.push(SeedSummary::of(sidecar.seed, &episodes));
+        seeds.push(serde_json::json!({"policy_seed": sidecar.seed, "episodes": episodes}));
+    }
+    let record = serde_json::json!({
+        "preset": preset.number(),
+        "description": preset.description(),
+        "paper_outcome": preset.paper_outcome(),
+        "policy": policy,
+        "states": preset.described_states(n),
+        "summaries": summaries,
+        "seeds": seeds,
+    });
+    Ok((summaries, record))
+}
+
+/// `scenario --states N`: the described states for each seed, as a table and a JSON record.
+fn described_states(
+    config: &Config,
+    preset: Preset,
+    policy: &Path,
+    seed: Option<u64>,
+    n: usize,
+    out: &Path,
+) -> Result<ExitCode> {
+    let (summaries, record) = described_seeds(config, preset, policy, seed, n)?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let json = out.join(format!("preset{}_states.json", preset.number()));
+    atomic::write(&json, serde_json::to_string_pretty(&record)?)
+        .with_context(|| format!("writing {}", json.display()))?;
+    print(&format!("{}\n{}", markdown(preset, &summaries), json.display()))?;
     Ok(ExitCode::SUCCESS)
 }

@@ -4,6 +4,7 @@
 pub mod claims;
 pub mod metrics;
 pub mod mpg_check;
+pub mod scenario_sets;
 pub mod study;
 pub mod traffic_study;
 

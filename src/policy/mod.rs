@@ -3,6 +3,7 @@
 pub mod drive;
 pub mod ensemble;
 pub mod file;
+pub mod kernels;
 pub mod mode;
 pub mod network;
 pub mod observation;

@@ -10,7 +10,9 @@
 
 use crate::config::Config;
 use crate::world::geometry::Road;
+use crate::world::sampler::scenario_rng;
 use crate::world::state::{Scene, Vehicle};
+use rand::Rng;
 
 /// A named initial state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,6 +69,57 @@ impl Preset {
     /// The initial scene for a configuration (see [`PresetState::scene`]).
     pub fn scene(self, config: &Config) -> Scene {
         self.state().scene(config)
+    }
+
+    /// The players the paper's ego merges between: "4" and "5" in scenario 1 (the gap that
+    /// widens), "5" and "6" in scenario 2 (it waits for "5" to pass).
+    pub fn paper_outcome(self) -> [usize; 2] {
+        match self {
+            Preset::One => [4, 5],
+            Preset::Two => [5, 6],
+        }
+    }
+
+    /// `n` initial states drawn uniformly from the scenario's description in the paper, around
+    /// [`Preset::state`], not chosen for any policy. State `k` comes from random stream `k` of
+    /// seed 1 or 2 (the preset's number), so the set is fixed.
+    ///
+    /// - Scenario 1: leaders at 7-11 m/s (below v_d = 15), followers at 16-20 m/s (above it),
+    ///   the nearest follower 100-140 m behind the ego.
+    /// - Scenario 2: a 55-85 m gap between "4" and "5", with "5" 4-8 m/s faster than the ego
+    ///   and the leaders at 12-15 m/s.
+    ///
+    /// Both: the ego 20-40 m before `x_c` at 8-12 m/s, "4" 7-13 m ahead of it.
+    pub fn described_states(self, n: usize) -> Vec<PresetState> {
+        (0..n as u64)
+            .map(|k| {
+                let mut rng = scenario_rng(u64::from(self.number()), k);
+                let mut draw = |lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
+                let ego_before = draw(20.0, 40.0);
+                let ego_speed = draw(8.0, 12.0);
+                let gap_ahead = draw(7.0, 13.0);
+                match self {
+                    Preset::One => PresetState {
+                        ego_before,
+                        ego_speed,
+                        gap_ahead,
+                        gap_behind: draw(100.0, 140.0),
+                        leader_speed: draw(7.0, 11.0),
+                        follower_speed: draw(16.0, 20.0),
+                        headway: draw(10.0, 18.0),
+                    },
+                    Preset::Two => PresetState {
+                        ego_before,
+                        ego_speed,
+                        gap_ahead,
+                        gap_behind: draw(55.0, 85.0) - gap_ahead,
+                        leader_speed: draw(12.0, 15.0),
+                        follower_speed: ego_speed + draw(4.0, 8.0),
+                        headway: draw(20.0, 40.0),
+                    },
+                }
+            })
+            .collect()
     }
 }
 
@@ -200,5 +253,41 @@ mod tests {
         assert_eq!(merged_between(&scene), [2, 3]);
         let alone = Scene::new(vec![car(181.0, false), car(150.0, false)]);
         assert_eq!(merged_between(&alone), [0, 1]);
+    }
+
+    #[test]
+    fn described_states_are_fixed_and_keep_to_each_scenarios_description() {
+        let within = |x: f64, lo: f64, hi: f64| (lo..=hi).contains(&x);
+        for preset in [Preset::One, Preset::Two] {
+            let states = preset.described_states(200);
+            // A fixed set: the first states do not depend on how many are drawn.
+            assert_eq!(preset.described_states(3)[..], states[..3]);
+            for s in &states {
+                assert!(
+                    within(s.ego_before, 20.0, 40.0) && within(s.ego_speed, 8.0, 12.0),
+                    "{s:?}"
+                );
+                assert!(within(s.gap_ahead, 7.0, 13.0), "{s:?}");
+                match preset {
+                    // Leaders below v_d = 15, followers above it, "5" 100-140 m behind.
+                    Preset::One => assert!(
+                        s.leader_speed < 15.0
+                            && s.follower_speed > 15.0
+                            && within(s.gap_behind, 100.0, 140.0),
+                        "{s:?}"
+                    ),
+                    // A 55-85 m gap between "4" and "5", "5" 4-8 m/s faster than the ego.
+                    Preset::Two => assert!(
+                        within(s.gap_ahead + s.gap_behind, 55.0, 85.0)
+                            && within(s.follower_speed - s.ego_speed, 4.0, 8.0),
+                        "{s:?}"
+                    ),
+                }
+            }
+            // Spread over the ranges, not bunched: some below and some above the middle.
+            let low = states.iter().filter(|s| s.ego_before < 30.0).count();
+            assert!((60..=140).contains(&low), "{low} of 200 below 30 m");
+        }
+        assert_ne!(Preset::One.described_states(1), Preset::Two.described_states(1));
     }
 }
