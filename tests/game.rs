@@ -287,6 +287,30 @@ fn check_mpg_passes_merge_traffic_in_the_theorem_setting() {
 }
 
 #[test]
+fn the_entry_rule_couples_players_unless_the_check_replays_its_decisions() {
+    // The traffic world keeps its entry rule (a gap or a hold at the ramp's end) and its
+    // 40 m merge zone in the exact setting. Decided live for every player (the configured
+    // setting with the projection and termination off: the same physics), a deviation moves
+    // the others' entries and the identity fails; replayed for all but the deviating player,
+    // it holds.
+    let mut config = common::traffic();
+    config.sim.horizon = 10.0;
+    assert_eq!(config.scenario.entry, mpgdrive::config::Entry::Gap);
+    assert!(config.scenario.merge_zone > 0.0);
+    config.sim.feasibility = false;
+    config.sim.terminate_on_collision = false;
+    let live = check_mpg(&config, &settings(false), &PaperReward::new(&config), &mut || {});
+    assert!(!live.feasibility && !live.terminate_on_collision);
+    assert!(live.max_relative_gap > 1e-6, "gap {}", live.max_relative_gap);
+    let replayed = check_mpg(&config, &settings(true), &PaperReward::new(&config), &mut || {});
+    assert!(
+        replayed.max_relative_gap < 1e-9,
+        "gap {}",
+        replayed.max_relative_gap
+    );
+}
+
+#[test]
 fn a_ramp_speed_weight_weighs_a_ramp_vehicles_speed_term_alone() {
     // A ramp vehicle at 10 m/s and a target-lane vehicle at 12 m/s, v_d = 15: raising the
     // ramp weight from w_speed = 1 to 3 adds 2 * -(10 - 15)^2 = -50 to the ramp vehicle's

@@ -12,7 +12,8 @@ use std::process::ExitCode;
 pub struct CheckMpgArgs {
     #[command(flatten)]
     common: Common,
-    /// Theorem setting: feasibility projection, collision termination and early merges off (f64).
+    /// Theorem setting (f64): feasibility projection and collision termination off; the entry
+    /// rule's decisions replayed from the base run for every player but the deviating one.
     #[arg(long)]
     exact: bool,
     /// Random joint policies K.

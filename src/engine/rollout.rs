@@ -23,10 +23,11 @@ use crate::config::Config;
 use crate::engine::outcome::{Collision, EgoStats, EpisodeOutcome, Trajectory};
 use crate::game::reward::{PairReward, PaperReward, StepRewards, tail_weight};
 use crate::world::drivers::{Driver, driver_accel};
+use crate::world::merge_gate::lane_end_holds;
 use crate::world::neighbors::{Neighbors, find_neighbors};
 use crate::world::rules::WorldRules;
 use crate::world::state::Scene;
-use crate::world::step::{advance, applied_action, first_collision_among};
+use crate::world::step::{advance, applied_action_held, first_collision_among};
 
 /// What a rollout keeps besides the per-episode outcome.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -81,6 +82,24 @@ pub trait Actor {
         let _ = i;
         true
     }
+
+    /// The entry rule's decisions for player `i` of scene `b` at `step`, given the world's
+    /// (`live`). Every actor keeps the world's; the MPG check replays another run's.
+    fn entry(&mut self, step: usize, b: usize, i: usize, live: EntryDecision) -> EntryDecision {
+        let _ = (step, b, i);
+        live
+    }
+}
+
+/// The two decisions of the entry rule for a ramp vehicle and a step, both read from the
+/// scene at the step's start.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct EntryDecision {
+    /// It joins the target lane this step before the ramp's end
+    /// ([`WorldRules::merges_early`]).
+    pub merges: bool,
+    /// The ramp's end holds it ([`lane_end_holds`]).
+    pub held: bool,
 }
 
 /// Fixed drivers: one for the ego, one for every other player.
@@ -222,19 +241,27 @@ fn run_chunk(
                 continue;
             }
             let out = &mut outcomes[b];
+            merging.clear();
             for i in 0..n {
                 let human = scene.is_human(i);
                 if human {
                     raw[b * n + i] = driver_accel(config, Driver::Idm, scene, i, &neighbors[b * n + i]);
                 }
                 let learning = actor.learning(i) && !human;
-                applied[i] = applied_action(
+                let live = EntryDecision {
+                    merges: rules.merges_early(scene, i),
+                    held: lane_end_holds(scene, i, &rules.gate),
+                };
+                let entry = actor.entry(step, b, i, live);
+                merging.push(entry.merges);
+                applied[i] = applied_action_held(
                     &rules,
                     opts.feasibility && (config.sim.project_non_learning || learning),
                     scene,
                     i,
                     &neighbors[b * n + i],
                     raw[b * n + i],
+                    entry.held,
                 );
             }
             let base = base.in_scene(scene);
@@ -250,8 +277,6 @@ fn run_chunk(
             for (i, stats) in out.vehicles.iter_mut().enumerate() {
                 stats.update_vehicle(scene, i, applied[i], dt);
             }
-            merging.clear();
-            merging.extend((0..n).map(|i| rules.merges_early(scene, i)));
             for ((v, &u), &merges) in scene.vehicles.iter_mut().zip(&applied).zip(&merging) {
                 *v = advance(v, u, merges, &rules);
             }

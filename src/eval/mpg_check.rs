@@ -17,21 +17,27 @@
 //! `u = g_p tanh(k (v* - v) + A sin(w t + psi))`, with `k, v*, A, w, psi` drawn per player
 //! from the check's seed. With the feasibility projection or collision termination on, a
 //! player's transition depends on its neighbours and the identity no longer holds exactly: the
-//! check then reports the measured gap as a finding. So does an early merge
-//! (`scenario.merge_zone`) and the entry rule (`scenario.entry = "gap"`), which wait for a safe
-//! gap; the exact setting turns them off too.
+//! check then reports the measured gap as a finding; the exact setting turns both off.
+//!
+//! **The entry rule.** Under `scenario.entry = "gap"` (and an early merge,
+//! `scenario.merge_zone`) a ramp vehicle enters the target lane only at a gap, and the ramp's
+//! end holds it until one comes: decisions that read the neighbours. They stay on in the exact
+//! setting, which instead records every player's decisions in the base run and replays them
+//! for every player but the deviating one, who decides live. The others' trajectories are then
+//! the base run's, which is all Theorems 1-3 need; the deviating player's may depend on them.
 //!
 //! In merge traffic (`scenario.kind = "traffic"`) the check runs on traffic episodes, several
 //! ramp vehicles and both streams, every vehicle a player (humans too: see [`check_mpg`]).
 
 use crate::config::Config;
-use crate::engine::rollout::{Actor, Recording, RolloutOptions, rollout_with_reward};
+use crate::engine::rollout::{Actor, EntryDecision, Recording, RolloutOptions, rollout_with_reward};
 use crate::game::reward::PairReward;
 use crate::world::neighbors::Neighbors;
 use crate::world::sampler::{sample_scenes, scenario_rng};
 use crate::world::state::Scene;
 use rand::Rng;
 use serde::Serialize;
+use std::sync::{Arc, Mutex};
 
 /// Amplitude `g_p` of the random policies (m/s^2).
 pub const POLICY_ACCEL: f64 = 3.0;
@@ -88,6 +94,47 @@ impl Actor for JointPolicy {
             for (i, (p, v)) in self.players.iter().zip(&scene.vehicles).enumerate() {
                 out[b * n + i] = p.accel(t, v.v);
             }
+        }
+    }
+}
+
+/// Every scene's entry decisions, `[scene][step * players + player]`.
+type EntryLog = Vec<Vec<EntryDecision>>;
+
+/// What a run of the exact setting does with the entry rule's decisions.
+#[derive(Debug, Clone)]
+enum Entries {
+    /// Decide live (the configured setting).
+    Live,
+    /// Decide live and record them (the base run).
+    Record(Arc<Mutex<EntryLog>>),
+    /// Replay the base run's for every player but `deviator`.
+    Replay { log: Arc<EntryLog>, deviator: usize },
+}
+
+/// A joint policy on a chunk of the states starting at state `offset`, with its entries.
+struct CheckActor {
+    policy: JointPolicy,
+    entries: Entries,
+    offset: usize,
+}
+
+impl Actor for CheckActor {
+    fn act(&mut self, step: usize, scenes: &[Scene], neighbors: &[Neighbors], out: &mut [f64]) {
+        self.policy.act(step, scenes, neighbors, out);
+    }
+
+    fn entry(&mut self, step: usize, b: usize, i: usize, live: EntryDecision) -> EntryDecision {
+        let at = step * self.policy.players.len() + i;
+        match &self.entries {
+            Entries::Live => live,
+            Entries::Record(log) => {
+                let mut log = log.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                log[self.offset + b][at] = live;
+                live
+            }
+            Entries::Replay { log, deviator } if i != *deviator => log[self.offset + b][at],
+            Entries::Replay { .. } => live,
         }
     }
 }
@@ -149,15 +196,41 @@ pub struct CheckReport {
     pub is_potential_game: bool,
 }
 
-/// Mean returns `J_i` and mean potential return `Phi` of a joint policy over `scenes`.
+/// Mean returns `J_i` and mean potential return `Phi` of a joint policy over `scenes`. The
+/// scenes run in `opts.threads` chunks, each knowing where it starts in the entry log.
 fn evaluate(
     config: &Config,
     opts: &RolloutOptions,
     scenes: &[Scene],
     pair: &dyn PairReward,
     policy: &JointPolicy,
+    entries: &Entries,
 ) -> (Vec<f64>, f64) {
-    let outcomes = rollout_with_reward(config, opts, scenes, pair, || policy.clone());
+    let chunk = scenes
+        .len()
+        .div_ceil(opts.threads.clamp(1, scenes.len().max(1)))
+        .max(1);
+    let one = RolloutOptions { threads: 1, ..*opts };
+    let outcomes: Vec<_> = std::thread::scope(|s| {
+        let handles: Vec<_> = scenes
+            .chunks(chunk)
+            .enumerate()
+            .map(|(k, part)| {
+                let one = &one;
+                s.spawn(move || {
+                    rollout_with_reward(config, one, part, pair, || CheckActor {
+                        policy: policy.clone(),
+                        entries: entries.clone(),
+                        offset: k * chunk,
+                    })
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("check worker panicked"))
+            .collect()
+    });
     let m = outcomes.len() as f64;
     let n = policy.players.len();
     let mut j = vec![0.0; n];
@@ -187,17 +260,10 @@ pub fn check_mpg(
     let mut opts = RolloutOptions::from_config(config);
     opts.recording = Recording::Summary;
     opts.threads = settings.threads;
-    let mut config = config.clone();
     if settings.exact {
         opts.feasibility = false;
         opts.terminate_on_collision = false;
-        // An early merge waits for a safe gap: a lane change that depends on the neighbours,
-        // as the projection does.
-        config.scenario.merge_zone = 0.0;
-        config.scenario.accel_lane = 0.0;
-        config.scenario.entry = crate::config::Entry::ConflictPoint;
     }
-    let config = &config;
     let n = config.n_agents();
     let mut scenes = sample_scenes(config, settings.seed, 0, settings.states);
     // In merge traffic every vehicle is a player here: a human's IDM reacts to its
@@ -221,12 +287,32 @@ pub fn check_mpg(
             players: (0..n).map(|_| OwnStatePolicy::random(&mut rng)).collect(),
             dt: config.sim.dt,
         };
-        let (j0, phi0) = evaluate(config, &opts, &scenes, pair, &base);
+        let log = settings.exact.then(|| {
+            let steps = vec![EntryDecision::default(); opts.steps * n];
+            Arc::new(Mutex::new(vec![steps; scenes.len()]))
+        });
+        let record = log
+            .as_ref()
+            .map_or(Entries::Live, |l| Entries::Record(Arc::clone(l)));
+        let (j0, phi0) = evaluate(config, &opts, &scenes, pair, &base, &record);
+        drop(record);
+        let log = log.map(|l| {
+            Arc::new(
+                Arc::into_inner(l)
+                    .expect("the base run is over")
+                    .into_inner()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner),
+            )
+        });
         progress();
         for (i, gap) in players.iter_mut().enumerate() {
             let mut deviated = base.clone();
             deviated.players[i] = OwnStatePolicy::random(&mut rng);
-            let (j1, phi1) = evaluate(config, &opts, &scenes, pair, &deviated);
+            let entries = log.as_ref().map_or(Entries::Live, |l| Entries::Replay {
+                log: Arc::clone(l),
+                deviator: i,
+            });
+            let (j1, phi1) = evaluate(config, &opts, &scenes, pair, &deviated, &entries);
             progress();
             let delta_j = j1[i] - j0[i];
             let delta_phi = phi1 - phi0;

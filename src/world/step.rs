@@ -65,6 +65,21 @@ pub fn applied_action(
     nb: &Neighbors,
     raw: f64,
 ) -> f64 {
+    let held = lane_end_holds(scene, i, &rules.gate);
+    applied_action_held(rules, feasibility, scene, i, nb, raw, held)
+}
+
+/// [`applied_action`] with the entry rule's hold given (`held`: the ramp's end holds the
+/// vehicle) instead of decided from the scene: the MPG check replays another run's.
+pub fn applied_action_held(
+    rules: &WorldRules,
+    feasibility: bool,
+    scene: &Scene,
+    i: usize,
+    nb: &Neighbors,
+    raw: f64,
+    held: bool,
+) -> f64 {
     let dt = rules.dt;
     let me = &scene.vehicles[i];
     let mut a = raw;
@@ -77,7 +92,7 @@ pub fn applied_action(
     if feasibility && (rules.merge_gate || scene.is_human(i)) && gate_holds(scene, i, &rules.gate) {
         a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
     }
-    if lane_end_holds(scene, i, &rules.gate) {
+    if held {
         a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
     }
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
