@@ -15,7 +15,7 @@ use crate::world::scenarios::Preset;
 pub struct ScenarioEpisode {
     /// The players the ego merged between (`None`: it never merged).
     pub merged_between: Option<[usize; 2]>,
-    /// It merged where the paper's ego does ([`Preset::paper_outcome`]).
+    /// It merged where the paper's ego does ([`Preset::paper_outcome`]), without a collision.
     pub paper_outcome: bool,
     /// A collision involving the ego.
     pub collision: bool,
@@ -63,7 +63,7 @@ pub fn described(
             let metrics = EpisodeMetrics::of(o);
             ScenarioEpisode {
                 merged_between: between,
-                paper_outcome: between == Some(preset.paper_outcome()),
+                paper_outcome: between == Some(preset.paper_outcome()) && !metrics.collision,
                 collision: metrics.collision,
                 alternation_s: longest_alternation(&ego(|t| &t.actions)) as f64 * dt,
                 raw_alternation_s: longest_alternation(&ego(|t| &t.raw_actions)) as f64 * dt,
