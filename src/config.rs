@@ -71,6 +71,21 @@ pub struct ScenarioConfig {
     pub entry: Entry,
 }
 
+/// In which order the feasibility projection settles the players of a step.
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ProjectionOrder {
+    /// The paper's reading: every vehicle at once, each assuming its neighbours keep their
+    /// speed. A leader pushed on by its follower's bound and that follower held back by its
+    /// leader's both correct the same closing speed, so together they overshoot, and the pair
+    /// can alternate from step to step (chatter).
+    #[default]
+    Simultaneous,
+    /// Ours: front to back, each vehicle's leader bound reading its leader's speed after this
+    /// step, already settled. A closing speed is corrected once.
+    Sequential,
+}
+
 /// How a ramp vehicle enters the target lane.
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
@@ -173,6 +188,10 @@ pub struct SimConfig {
     /// follow `safety_gap` behind its leader at any speed.
     #[serde(default)]
     pub time_headway: f64,
+    /// In which order the feasibility projection settles the players of a step (`feasibility`).
+    /// Simultaneous when absent (files written before it existed).
+    #[serde(default)]
+    pub projection_order: ProjectionOrder,
     /// With `feasibility`: also hold a ramp vehicle able to stop before `x_c` while entering
     /// the target lane is not safe (the merge gate, [`crate::world::merge_gate`]). Off when
     /// absent (files written before it existed).

@@ -367,3 +367,60 @@ fn a_ramp_queue_keeps_its_ttc_as_the_target_lane_does() {
     let a = mpgdrive::world::step::applied_action(&rules, true, &alone, 0, &nb[0], 9.81);
     assert_abs_diff_eq!(a, 9.81, epsilon = 1e-12);
 }
+
+/// Applied actions of a leader at 120 m (10 m/s) and a follower at 100 m (14 m/s) in the
+/// target lane, raw -3 and +3 m/s^2, with the ego far behind on the ramp, over `steps`.
+fn pair_actions(order: mpgdrive::config::ProjectionOrder, steps: usize) -> Vec<[f64; 2]> {
+    let mut config = common::paper();
+    config.sim.projection_order = order;
+    let mut o = opts(&config, 1);
+    o.recording = Recording::Full;
+    o.steps = steps;
+    let s = scene(vec![
+        car(0.0, 10.0, true),
+        car(120.0, 10.0, false),
+        car(100.0, 14.0, false),
+    ]);
+    let out = rollout(&config, &o, &[s], || Fixed(vec![0.0, -3.0, 3.0]))
+        .pop()
+        .unwrap();
+    let t = out.trajectory.unwrap();
+    t.actions.chunks(3).map(|a| [a[1], a[2]]).collect()
+}
+
+#[test]
+fn the_sequential_projection_corrects_a_closing_speed_once() {
+    use mpgdrive::config::ProjectionOrder::{Sequential, Simultaneous};
+    // One step by hand (clearance 5 + 2 m, tau_s = 3 s, dt = 0.1 s): after it the gap is
+    // (120 + 1) - (100 + 1.4) - 7 = 12.6 m, so 12.6 / 3 = 4.2 m/s of closing speed is allowed.
+    // The leader's follower bound: v' >= 14 - 4.2 = 9.8, a >= -2 (raw -3: pushed up to -2).
+    // Simultaneous, the follower's leader bound reads the leader's current 10 m/s:
+    // v' <= 14.2, a <= +2. Sequential, its settled 9.8 m/s: v' <= 14.0, a <= 0.
+    let [lead, follow] = pair_actions(Simultaneous, 1)[0];
+    assert_abs_diff_eq!(lead, -2.0, epsilon = 1e-9);
+    assert_abs_diff_eq!(follow, 2.0, epsilon = 1e-9);
+    let [lead, follow] = pair_actions(Sequential, 1)[0];
+    assert_abs_diff_eq!(lead, -2.0, epsilon = 1e-9);
+    assert_abs_diff_eq!(follow, 0.0, epsilon = 1e-9);
+}
+
+#[test]
+fn the_simultaneous_projection_chatters_where_the_sequential_one_settles() {
+    use mpgdrive::config::ProjectionOrder::{Sequential, Simultaneous};
+    use mpgdrive::eval::scenario_sets::longest_alternation;
+    // The same pair for 20 s: simultaneous, both players correct the same closing speed, then
+    // both bounds come free and the raw actions close the gap again, so every step flips the
+    // sign of both actions (from -2 / +2 to +3.47 / -3.47 and on). Sequential: the leader is
+    // pushed on once, the follower keeps its speed, no flip after the first step.
+    let flips = |order| {
+        let a = pair_actions(order, 200);
+        let lead: Vec<f64> = a.iter().map(|x| x[0]).collect();
+        let follow: Vec<f64> = a.iter().map(|x| x[1]).collect();
+        (longest_alternation(&lead), longest_alternation(&follow))
+    };
+    assert_eq!(flips(Simultaneous), (199, 199));
+    let (lead, follow) = flips(Sequential);
+    assert!(lead <= 1 && follow <= 1, "{lead} {follow}");
+    let second = pair_actions(Simultaneous, 2)[1];
+    assert_abs_diff_eq!(second[0], 3.466_666_666_666_6, epsilon = 1e-9);
+}

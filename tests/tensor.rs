@@ -95,6 +95,35 @@ fn engines_agree_with_constant_speed_players() {
 }
 
 #[test]
+fn engines_agree_in_the_sequential_projection_order() {
+    // Front to back, each leader bound reading the leader's settled speed: the scalar engine
+    // settles by lane rank, the tensor engine in passes. Constant-speed players close in on
+    // each other, so bounds bind; the returns differ from the simultaneous order's.
+    use mpgdrive::config::ProjectionOrder::Sequential;
+    let mut config = ungated();
+    config.sim.projection_order = Sequential;
+    assert!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true) > 0);
+    let mut traffic = common::traffic();
+    traffic.sim.projection_order = Sequential;
+    traffic_engines_agree(&traffic);
+    let scenes = sample_scenes(&config, 17, 0, 24);
+    let opts = RolloutOptions {
+        steps: 150,
+        threads: 2,
+        ..RolloutOptions::from_config(&config)
+    };
+    let run = |config: &Config| {
+        rollout(config, &opts, &scenes, || {
+            DriverActor::new(config, Driver::Idm, Driver::ConstSpeed)
+        })
+        .iter()
+        .map(|o| o.potential_return)
+        .collect::<Vec<_>>()
+    };
+    assert_ne!(run(&config), run(&ungated()));
+}
+
+#[test]
 fn engines_agree_with_the_merge_gate() {
     // The gate holds the IDM ego (which ignores target-lane cars) until entering is safe:
     // the crashes of the ungated runs above disappear, in both engines alike.

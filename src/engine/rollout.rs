@@ -24,10 +24,10 @@ use crate::engine::outcome::{Collision, EgoStats, EpisodeOutcome, Trajectory};
 use crate::game::reward::{PairReward, PaperReward, StepRewards, tail_weight};
 use crate::world::drivers::{Driver, driver_accel};
 use crate::world::merge_gate::lane_end_holds;
-use crate::world::neighbors::{Neighbors, find_neighbors};
+use crate::world::neighbors::{Neighbors, find_neighbors, front_to_back};
 use crate::world::rules::WorldRules;
 use crate::world::state::Scene;
-use crate::world::step::{advance, applied_action_held, first_collision_among};
+use crate::world::step::{Settled, advance, applied_action_with, first_collision_among};
 
 /// What a rollout keeps besides the per-episode outcome.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -224,6 +224,7 @@ fn run_chunk(
     let mut raw = vec![0.0; scenes.len() * n];
     let mut applied = vec![0.0; n];
     let mut merging: Vec<bool> = Vec::with_capacity(n);
+    let mut settle_order: Vec<usize> = Vec::with_capacity(n);
     let (mut order, mut scratch) = (Vec::new(), Vec::new());
     let mut rewards = StepRewards::default();
     let mut discount = 1.0;
@@ -242,10 +243,18 @@ fn run_chunk(
             }
             let out = &mut outcomes[b];
             merging.clear();
-            for i in 0..n {
+            merging.resize(n, false);
+            let nb = &neighbors[b * n..(b + 1) * n];
+            if rules.sequential {
+                front_to_back(nb, &mut settle_order);
+            } else {
+                settle_order.clear();
+                settle_order.extend(0..n);
+            }
+            for &i in &settle_order {
                 let human = scene.is_human(i);
                 if human {
-                    raw[b * n + i] = driver_accel(config, Driver::Idm, scene, i, &neighbors[b * n + i]);
+                    raw[b * n + i] = driver_accel(config, Driver::Idm, scene, i, &nb[i]);
                 }
                 let learning = actor.learning(i) && !human;
                 let live = EntryDecision {
@@ -253,15 +262,23 @@ fn run_chunk(
                     held: lane_end_holds(scene, i, &rules.gate),
                 };
                 let entry = actor.entry(step, b, i, live);
-                merging.push(entry.merges);
-                applied[i] = applied_action_held(
+                merging[i] = entry.merges;
+                let settled = Settled {
+                    held: Some(entry.held),
+                    // The leader was settled before (front to back): its speed after the step.
+                    leader_next_v: nb[i]
+                        .lane_leader
+                        .filter(|_| rules.sequential)
+                        .map(|j| scene.vehicles[j].v + applied[j] * dt),
+                };
+                applied[i] = applied_action_with(
                     &rules,
                     opts.feasibility && (config.sim.project_non_learning || learning),
                     scene,
                     i,
-                    &neighbors[b * n + i],
+                    &nb[i],
                     raw[b * n + i],
-                    entry.held,
+                    settled,
                 );
             }
             let base = base.in_scene(scene);

@@ -19,7 +19,7 @@ use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
-use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
+use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible};
 use crate::world::state::{Scene, Vehicle};
 use crate::world::step::first_collision_among;
 use std::rc::Rc;
@@ -269,7 +269,11 @@ pub enum Learning {
 
 /// Applied actions: feasibility projection towards same-lane neighbours and the merge gate for
 /// ramp players (when `feasibility`; with `only`, for the players where it is 1), then
-/// `[-g, g]` and the speed bounds.
+/// `[-g, g]` and the speed bounds. In the sequential order ([`WorldRules::sequential`]) each
+/// leader bound reads the leader's settled next speed: pass `k` settles every player with `k`
+/// lane leaders ahead of it, so at most one pass per player, and the passes stop when one
+/// changes nothing (then none would). The same actions as the scalar engine's front-to-back
+/// order ([`crate::world::neighbors::front_to_back`]).
 pub fn apply_limits(
     rules: &WorldRules,
     batch: &TensorBatch,
@@ -278,11 +282,42 @@ pub fn apply_limits(
     feasibility: bool,
     only: Option<&Var>,
 ) -> Var {
+    let settle =
+        |leader_next: Option<&Var>| limits_once(rules, batch, nb, raw, feasibility, only, leader_next);
+    let mut a = settle(None);
+    if !(rules.sequential && feasibility) {
+        return a;
+    }
+    let leaders = &nb.index[Which::LaneLeader as usize];
+    for _ in 1..batch.x.cols() {
+        let next = batch.v.add(&a.mul_c(rules.dt)).gather_cols(leaders);
+        let settled = settle(Some(&next));
+        let unchanged = settled.values() == a.values();
+        a = settled;
+        if unchanged {
+            break;
+        }
+    }
+    a
+}
+
+/// One pass of [`apply_limits`], the lane leaders' next speeds given (`leader_next`) or their
+/// current speeds.
+fn limits_once(
+    rules: &WorldRules,
+    batch: &TensorBatch,
+    nb: &NeighborIndex,
+    raw: &Var,
+    feasibility: bool,
+    only: Option<&Var>,
+    leader_next: Option<&Var>,
+) -> Var {
     let dt = rules.dt;
     let a = if feasibility {
         let lead = nb.get(batch, Which::LaneLeader);
         let follow = nb.get(batch, Which::LaneFollower);
-        let (lo, hi) = feasible_interval(&batch.x, &batch.v, &lead, &follow, &rules.projection());
+        let next = leader_next.unwrap_or(&lead.v);
+        let (lo, hi) = feasible_interval_after(&batch.x, &batch.v, &lead, next, &follow, &rules.projection());
         let lane = project_feasible(raw, &lo, &hi);
         if rules.merge_gate || batch.any_human() {
             merge_gate(rules, batch, &lane)

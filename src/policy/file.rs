@@ -92,7 +92,7 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
 
 /// The world rules a trained policy's behaviour rests on, by configuration key: the step, the
 /// limits, the vehicle box, the geometry and the feasibility rules (flags as 0 or 1).
-fn world_rules(c: &Config) -> [(&'static str, f64); 18] {
+fn world_rules(c: &Config) -> [(&'static str, f64); 19] {
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     [
         ("sim.dt", c.sim.dt),
@@ -107,6 +107,10 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 18] {
         ("sim.tau_s", c.sim.tau_s),
         ("sim.safety_gap", c.sim.safety_gap),
         ("sim.time_headway", c.sim.time_headway),
+        (
+            "sim.projection_order (1: sequential)",
+            flag(c.sim.projection_order == crate::config::ProjectionOrder::Sequential),
+        ),
         ("sim.merge_gate", flag(c.sim.merge_gate)),
         ("sim.b_safe", c.sim.b_safe),
         (

@@ -83,7 +83,7 @@ use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval};
 use crate::world::state::{Scene, Vehicle};
-use crate::world::step::applied_action;
+use crate::world::step::{Settled, applied_action_with};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::time::Instant;
@@ -885,9 +885,17 @@ impl Controller {
         };
         let mut raw = vec![0.0f32; rows.len()];
         policy.act(&obs, rows.len(), &mut raw);
-        rows.iter()
-            .zip(raw)
-            .map(|(&(si, m, j), a)| {
+        // Front to back in the sequential projection order: each leader bound reads a
+        // controlled leader's settled speed (a SUMO-driven one keeps its current speed).
+        let mut order: Vec<usize> = (0..rows.len()).collect();
+        if self.rules.sequential {
+            order.sort_by(|&p, &q| cars[rows[q].2].x.total_cmp(&cars[rows[p].2].x));
+        }
+        let mut next_v: HashMap<usize, f64> = HashMap::new();
+        let mut applied = vec![(0, 0.0); rows.len()];
+        for r in order {
+            let ((si, m, j), a) = (rows[r], raw[r]);
+            {
                 let nb: &Neighbors = &neighbors[si][m];
                 // A waiting ego outlives its players (fixed at pick-up): the merge gate looks at
                 // the target lane as it is now, so a car that arrived later is not invisible.
@@ -901,7 +909,19 @@ impl Controller {
                 };
                 let scene_leader = nb.lane_leader.map(|l| scene_cars[si][l]);
                 let rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
-                let mut a = applied_action(&rules, self.config.sim.feasibility, scene, i, nb, f64::from(a));
+                let settled = Settled {
+                    held: None,
+                    leader_next_v: scene_leader.and_then(|l| next_v.get(&l).copied()),
+                };
+                let mut a = applied_action_with(
+                    &rules,
+                    self.config.sim.feasibility,
+                    scene,
+                    i,
+                    nb,
+                    f64::from(a),
+                    settled,
+                );
                 if self.config.sim.feasibility {
                     let bounds = [
                         if self.sumo_holds_lane_changes() || self.is_junction() {
@@ -942,9 +962,13 @@ impl Controller {
                         a = a.min(stop_bound(&car.x, &car.v, &rules.gate));
                     }
                 }
-                (j, a)
-            })
-            .collect()
+                if self.rules.sequential {
+                    next_v.insert(j, car.v + a * rules.dt);
+                }
+                applied[r] = (j, a);
+            }
+        }
+        applied
     }
 
     /// The rules `car`'s action is applied under, `lane_leader` being its leader in the
@@ -1134,6 +1158,7 @@ mod tests {
     use super::*;
     use crate::policy::network::PolicyNet;
     use crate::world::merge_gate::{GateRules, entry_is_safe};
+    use crate::world::step::applied_action;
 
     /// A ramp vehicle past its scene entry that SUMO has not moved yet: in the scene's target
     /// lane, on the acceleration lane in SUMO.

@@ -87,3 +87,20 @@ pub fn player_slots<K: Clone>(
     );
     players
 }
+
+/// Writes into `order` the players in the feasibility projection's sequential order
+/// (`sim.projection_order = "sequential"`): by lane rank, the number of lane leaders ahead of
+/// each (0 for the front of a lane), so that every lane leader is settled before its follower;
+/// ties keep index order.
+pub fn front_to_back(neighbors: &[Neighbors], order: &mut Vec<usize>) {
+    let rank = |mut i: usize| {
+        let mut r = 0;
+        while let Some(j) = neighbors[i].lane_leader {
+            (i, r) = (j, r + 1);
+        }
+        r
+    };
+    order.clear();
+    order.extend(0..neighbors.len());
+    order.sort_by_key(|&i| rank(i));
+}

@@ -35,6 +35,9 @@ pub struct WorldRules {
     pub tau_s: f64,
     /// Time gap of the feasibility projection (s; `sim.time_headway`).
     pub time_headway: f64,
+    /// Whether the feasibility projection settles vehicles front to back
+    /// (`sim.projection_order = "sequential"`), each leader bound reading the leader's next speed.
+    pub sequential: bool,
     /// Whether the merge gate holds ramp vehicles when the feasibility rules are on.
     pub merge_gate: bool,
     /// The merge gate's parameters (clearance, braking, horizon).
@@ -59,6 +62,7 @@ impl WorldRules {
             v_max: veh.v_max,
             tau_s: config.sim.tau_s,
             time_headway: config.sim.time_headway,
+            sequential: config.sim.projection_order == crate::config::ProjectionOrder::Sequential,
             merge_gate: config.sim.merge_gate,
             gate: GateRules::new(config),
         }

@@ -7,7 +7,7 @@ use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
 use crate::world::neighbors::Neighbors;
 use crate::world::rules::WorldRules;
-use crate::world::safety::{Neighbor, clip_action, feasible_interval, project_feasible};
+use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible};
 use crate::world::state::{Scene, Vehicle};
 
 /// A neighbour of `scene` as the generic equations take it (absent: far ahead, same speed).
@@ -65,20 +65,30 @@ pub fn applied_action(
     nb: &Neighbors,
     raw: f64,
 ) -> f64 {
-    let held = lane_end_holds(scene, i, &rules.gate);
-    applied_action_held(rules, feasibility, scene, i, nb, raw, held)
+    applied_action_with(rules, feasibility, scene, i, nb, raw, Settled::default())
 }
 
-/// [`applied_action`] with the entry rule's hold given (`held`: the ramp's end holds the
-/// vehicle) instead of decided from the scene: the MPG check replays another run's.
-pub fn applied_action_held(
+/// What is settled about a step before a vehicle's action is: by default nothing, and
+/// [`applied_action_with`] reads both from the scene.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Settled {
+    /// The entry rule's hold (`Some(true)`: the ramp's end holds the vehicle): the MPG check
+    /// replays another run's.
+    pub held: Option<bool>,
+    /// The lane leader's speed after this step, in the sequential projection order
+    /// ([`WorldRules::sequential`]).
+    pub leader_next_v: Option<f64>,
+}
+
+/// [`applied_action`] with what `settled` gives.
+pub fn applied_action_with(
     rules: &WorldRules,
     feasibility: bool,
     scene: &Scene,
     i: usize,
     nb: &Neighbors,
     raw: f64,
-    held: bool,
+    settled: Settled,
 ) -> f64 {
     let dt = rules.dt;
     let me = &scene.vehicles[i];
@@ -86,13 +96,17 @@ pub fn applied_action_held(
     if feasibility {
         let lead = neighbor_of(scene, nb.lane_leader, me);
         let follow = neighbor_of(scene, nb.lane_follower, me);
-        let (lo, hi) = feasible_interval(&me.x, &me.v, &lead, &follow, &rules.projection());
+        let lead_next = settled.leader_next_v.unwrap_or(lead.v);
+        let (lo, hi) = feasible_interval_after(&me.x, &me.v, &lead, &lead_next, &follow, &rules.projection());
         a = project_feasible(&a, &lo, &hi);
     }
     if feasibility && (rules.merge_gate || scene.is_human(i)) && gate_holds(scene, i, &rules.gate) {
         a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
     }
-    if held {
+    if settled
+        .held
+        .unwrap_or_else(|| lane_end_holds(scene, i, &rules.gate))
+    {
         a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
     }
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
