@@ -7,9 +7,9 @@
 //! the `AVX2` branch falls back to the processor's own on non-Intel ones). ATen's own
 //! element-wise and reduction kernels are fixed to their AVX2 build. Both read an environment
 //! variable once, at their first use, so [`pin`] sets them before libtorch runs anything.
-//! Measured on the 20-epoch check of `tests/cli.rs` and the paper's training: the weights no
-//! longer change with `MKL_ENABLE_INSTRUCTIONS=AVX2` or `SSE4_2`; training takes about 1.6x as
-//! long (MKL's compatible matrix product is its SSE2 one).
+//! Measured on a 20-epoch paper training and checked on the smoke training (`tests/train.rs`):
+//! the weights no longer change with `MKL_ENABLE_INSTRUCTIONS=AVX2` or `SSE4_2`; training takes
+//! about 1.6x as long (MKL's compatible matrix product is its SSE2 one).
 
 /// The environment variables [`pin`] sets, and their values.
 pub const PINNED: [(&str, &str); 2] = [("MKL_CBWR", "COMPATIBLE"), ("ATEN_CPU_CAPABILITY", "avx2")];
