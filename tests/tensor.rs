@@ -124,6 +124,31 @@ fn engines_agree_in_the_sequential_projection_order() {
 }
 
 #[test]
+fn the_sequential_order_records_one_projection_pass_a_step() {
+    // Its passes settle on values; the tape gets one recorded pass a step, as in the
+    // simultaneous order, plus the leaders' settled speeds (3 operations). Recording every
+    // pass (one per lane rank) took over twice the memory of the whole rollout.
+    use mpgdrive::config::ProjectionOrder::{Sequential, Simultaneous};
+    let recorded = |order| {
+        let mut config = ungated();
+        config.sim.projection_order = order;
+        let scenes = sample_scenes(&config, 17, 0, 24);
+        tape::start();
+        let run = double(150, true, true, tensor::Learning::All);
+        tensor::rollout(&config, &scenes, &run, |b, nb, _| {
+            let gain = Var::leaf(vec![1.0; b.x.rows()], b.x.rows(), 1);
+            idm_actions(&config, b, nb).mul(&gain)
+        });
+        tape::recorded()
+    };
+    let (simultaneous, sequential) = (recorded(Simultaneous), recorded(Sequential));
+    assert!(
+        sequential <= simultaneous + 150 * 3,
+        "{sequential} operations recorded against {simultaneous}"
+    );
+}
+
+#[test]
 fn engines_agree_with_the_merge_gate() {
     // The gate holds the IDM ego (which ignores target-lane cars) until entering is safe:
     // the crashes of the ungated runs above disappear, in both engines alike.

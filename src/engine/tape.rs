@@ -49,6 +49,12 @@ pub fn start() {
     });
 }
 
+/// The number of operations recorded on this thread's tape since [`start`]: the memory a
+/// backward pass will hold.
+pub fn recorded() -> usize {
+    TAPE.with(|t| t.borrow().nodes.len())
+}
+
 /// An array of `rows x cols` values (row-major), on this thread's tape when it depends on a
 /// leaf.
 #[derive(Debug, Clone)]
