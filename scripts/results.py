@@ -8,6 +8,8 @@
     scripts/results.py grid DIR       the SUMO grid on the bundled networks, from
                                       scripts/traffic_acceptance.sh DIR's acceptance.md
     scripts/results.py zoo DIR        the merge zoo, from scripts/zoo_acceptance.sh DIR
+    scripts/results.py study DIR      the penetration study, from `mpgdrive study --out DIR`
+                                      (its table, and its plot as docs/results/study.png)
 
 Each writes docs/results/KIND.md, then docs/results/summary.md from all of them and README's
 results block. Every file's first line records the policy files and configuration it
@@ -32,11 +34,13 @@ PAPER_INPUTS = ["configs/paper.toml", "policies/mpg/*.json", "policies/mpg/*.saf
 TRAFFIC_INPUTS = ["configs/traffic.toml", "policies/traffic/*/*.json",
                   "policies/traffic/*/*.safetensors"]
 INPUTS = {"paper": PAPER_INPUTS, "traffic": TRAFFIC_INPUTS, "grid": TRAFFIC_INPUTS,
-          "zoo": TRAFFIC_INPUTS}
+          "zoo": TRAFFIC_INPUTS, "study": TRAFFIC_INPUTS}
+FOLDERS = ("grid", "zoo", "study")
 TITLES = {"paper": "The paper's study (Tables II and III, claims, scenarios)",
           "traffic": "The traffic policies in their own world",
           "grid": "The traffic policies in SUMO on the bundled networks",
-          "zoo": "The traffic policies in SUMO on the merge zoo"}
+          "zoo": "The traffic policies in SUMO on the merge zoo",
+          "study": "The game against SUMO's drivers, by share of controllable vehicles"}
 README_BEGIN = "<!-- results: docs/results/summary.md -->"
 README_END = "<!-- /results -->"
 
@@ -148,6 +152,42 @@ def acceptance(kind, folder):
           + body)
 
 
+def study(folder):
+    """docs/results/study.md and study.png from a `mpgdrive study` output folder."""
+    path = os.path.join(folder, "study.md")
+    if not os.path.isfile(path):
+        sys.exit(f"results: {path} does not exist (run `mpgdrive study --out {folder}` first)")
+    write("study.md", header("study", f"mpgdrive study --out DIR && scripts/results.py study DIR")
+          + open(path).read() + "\n![The penetration study](study.png)\n")
+    fd, tmp = tempfile.mkstemp(dir=RESULTS, prefix=".study.png.")
+    with os.fdopen(fd, "wb") as h, open(os.path.join(folder, "study.png"), "rb") as png:
+        h.write(png.read())
+    os.replace(tmp, os.path.join(RESULTS, "study.png"))
+
+
+def study_rows():
+    """The summary's lines from docs/results/study.md: the time-loss ratio by share, and the
+    share from which the game beats SUMO's drivers."""
+    path = os.path.join(RESULTS, "study.md")
+    if not os.path.isfile(path):
+        return []
+    text = open(path).read()
+    rows = [line.split("|")[1:-1] for line in text.split("\n\n| controllable share", 2)[1].splitlines()
+            if re.match(r"\| \d+% \|", line)] if "\n\n| controllable share" in text else []
+    ratios = [(c[0].strip(), c[-1].strip()) for c in rows if c[0].strip() != "0%"]
+    net = re.search(r"`([^`]*)\.sumocfg`, demand ([\d.]+)", text)
+    seeds = re.search(r"seeds ([\d, ]+), ([\d.]+) s runs", text)
+    setting = (f"{os.path.basename(os.path.dirname(net.group(1)))}, demand {net.group(2)}, "
+               f"seeds {seeds.group(1)}, {seeds.group(2)} s" if net and seeds else "?")
+    verdict = re.search(r"^(The game .*)$", text, re.M)
+    return [
+        f"| Penetration study ({setting}): time loss of every vehicle, the game / SUMO's drivers "
+        f"alone, at {' / '.join(r[0] for r in ratios)} controllable vehicles "
+        f"| {' / '.join(r[1] for r in ratios)} | `study.md` |",
+        f"| {verdict.group(1) if verdict else '?'} | | `study.md` |",
+    ]
+
+
 def deployments(kind):
     """(held, total, controlled collisions) over the deployment rows of a grid or zoo results
     file, or None."""
@@ -165,7 +205,7 @@ def summary():
     def cell(pattern, text):
         m = re.search(pattern, text, re.M)
         return m.group(1).strip() if m else "?"
-    rows = []
+    rows = study_rows()
     paper_md = open(os.path.join(RESULTS, "paper.md")).read()
     t2 = paper_md.split("Statistical results: Single-agent RL")[0]
     ne_idm = cell(r"^\| Collision rate \| (.*?) \|$", t2).replace("/500", "").replace(" | ", " / ")
@@ -223,13 +263,15 @@ def summary():
 
 def main():
     args = sys.argv[1:]
-    if not args or args[0] not in INPUTS or (args[0] in ("grid", "zoo")) != (len(args) == 2):
+    if not args or args[0] not in INPUTS or (args[0] in FOLDERS) != (len(args) == 2):
         sys.exit(__doc__)
     kind = args[0]
     if kind == "paper":
         paper()
     elif kind == "traffic":
         traffic()
+    elif kind == "study":
+        study(args[1])
     else:
         acceptance(kind, args[1])
     summary()

@@ -76,6 +76,11 @@ pub struct CosimArgs {
     /// Skip the time-space diagrams (timespace_<controller>.png in --out).
     #[arg(long)]
     no_diagrams: bool,
+    /// Every vehicle carries SUMO's SSM device, whatever the route files equip (the conflicts
+    /// of the whole traffic, as `study` counts them; by default only when no vehicle type
+    /// carries it).
+    #[arg(long)]
+    ssm_all: bool,
 }
 
 #[cfg(not(feature = "sumo"))]
@@ -195,7 +200,7 @@ mod with_sumo {
             },
             out: args.out.clone(),
             timespace: !args.no_diagrams,
-            equip_ssm: !ssm_equipped,
+            equip_ssm: args.ssm_all || !ssm_equipped,
         };
         Ok((config, settings))
     }

@@ -14,6 +14,7 @@ mod ngsim;
 mod report;
 mod routes;
 mod scenario;
+mod study;
 mod train;
 
 use anyhow::Result;
@@ -63,6 +64,9 @@ enum Command {
     /// The statistical study (Tables II and III): the ego on a policy (or one per seed) against
     /// NE, IDM and constant-speed surrounding players.
     Eval(eval::EvalArgs),
+    /// The penetration study: the game against SUMO's drivers as the share of controllable
+    /// vehicles grows (time loss of every vehicle, throughput, ego speed, conflicts).
+    Study(study::StudyArgs),
     /// Check Definition 3 numerically: Delta J_i against Delta Phi for unilateral deviations.
     CheckMpg(check_mpg::CheckMpgArgs),
 }
@@ -87,5 +91,6 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Train(args) => train::run(args),
         Command::Eval(args) => eval::run(args),
         Command::CheckMpg(args) => check_mpg::run(args),
+        Command::Study(args) => study::run(args),
     }
 }

@@ -30,6 +30,10 @@ pub struct ReportArgs {
     /// Seed of the MARL policy that drives the specific scenarios (default: the lowest).
     #[arg(long)]
     policy_seed: Option<u64>,
+    /// A `mpgdrive study` output directory to include: the penetration study's table and plot
+    /// (skipped when it has no study.md).
+    #[arg(long, default_value = "results/study")]
+    study: PathBuf,
     /// A `mpgdrive cosim` output directory to include (skipped when it has no cosim.md).
     #[arg(long, default_value = "results/cosim")]
     cosim: PathBuf,
@@ -151,7 +155,8 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let families = scenarios_section(&mut doc, &ctx)?;
     atomic::write(&args.out.join("claims.md"), format!("{claims}\n{families}"))?;
     training_section(&mut doc, &ctx, (&mpg, &sarl), (&marl, &single))?;
-    // Co-simulation, NGSIM and batch, when present.
+    // The penetration study, co-simulation, NGSIM and batch, when present.
+    study_in_sumo_section(&mut doc, &args.study, &ctx.figures)?;
     cosim_section(&mut doc, &args.cosim, &ctx.figures)?;
     include_results(
         &mut doc,
@@ -206,6 +211,7 @@ fn check_inputs(args: &ReportArgs, policies: &[PathBuf; 2]) -> Result<()> {
             )));
         }
     }
+    check_results(&args.study, &["study.md", "study.csv"])?;
     check_results(&args.cosim, &["cosim.md", "cosim.json"])?;
     check_results(&args.ngsim, &["table4.md"])?;
     if let Some(dir) = args.batch.as_ref().filter(|d| !d.join("summary.md").is_file()) {
@@ -441,6 +447,27 @@ fn include_results(doc: &mut Document, heading: &str, file: &Path, missing: &str
             false
         }
     }
+}
+
+/// The penetration study's tables and plot (copied into `figures`).
+fn study_in_sumo_section(doc: &mut Document, dir: &Path, figures: &Path) -> Result<()> {
+    let included = include_results(
+        doc,
+        "The game against SUMO's drivers, by share of controllable vehicles",
+        &dir.join("study.md"),
+        "no penetration study: run `mpgdrive study` (see docs/GUIDE.md) and pass its --out here with --study",
+    );
+    let plot = dir.join("study.png");
+    if included && plot.is_file() {
+        let copy = figures.join("study.png");
+        let bytes = std::fs::read(&plot).with_context(|| format!("reading {}", plot.display()))?;
+        atomic::write(&copy, bytes).with_context(|| format!("writing {}", copy.display()))?;
+        doc.push(Block::Image(
+            copy,
+            "Each quantity against the share of controllable vehicles: mean over seeds, band of one sample standard deviation".into(),
+        ));
+    }
+    Ok(())
 }
 
 /// The co-simulation table and the time-space diagram of each controller that has one

@@ -13,7 +13,8 @@
 //! the ramp (or the dropped lane) the minor link. With several ramps (a corridor), each merge
 //! is followed by `spacing` metres of freeway (`mid1`, `mid2`, ...) before the next ramp
 //! (`ramp2`, `ramp3`, ...); the last piece is `out`. Routes are `<flow>`s with `from`/`to`, one
-//! per freeway lane (`human`) and one per ramp (`ctrl`, the type mpgdrive may drive).
+//! per freeway lane (`human`) and one per ramp (`ramp_mix`: `ctrl`, the type mpgdrive may drive, or
+//! `human_ramp`; all `ctrl` unless `mpgdrive routes --controllable-share` sets another share).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -388,15 +389,19 @@ impl MergeNetwork {
         // a lane that ends as soon as they can, so only late ones are still on it there.
         if self.form == BuiltForm::LaneDrop {
             let pos = format!(" departPos=\"{:.1}\"", (self.upstream - DROP_INSERT).max(0.0));
-            flows += &flow("ramp".into(), "ctrl", "in", 0, self.ramp_flow, &pos);
+            flows += &flow("ramp".into(), "ramp_mix", "in", 0, self.ramp_flow, &pos);
         } else {
             for Ramp { id, .. } in self.layout().1 {
-                flows += &flow(id.clone(), "ctrl", &id, 0, self.ramp_flow, "");
+                flows += &flow(id.clone(), "ramp_mix", &id, 0, self.ramp_flow, "");
             }
         }
+        // Ramp vehicles draw their type from `ramp_mix`: all controllable, as SUMO reads the file;
+        // `mpgdrive routes --controllable-share` sets another share, as for i80_merge.
+        let car = "length=\"5\" minGap=\"2\" accel=\"2.6\" decel=\"4.5\" sigma=\"0.5\"";
         format!(
-            "<routes>\n  <vType id=\"human\" length=\"5\" minGap=\"2\" accel=\"2.6\" decel=\"4.5\" sigma=\"0.5\"/>\n  \
-             <vType id=\"ctrl\" length=\"5\" minGap=\"2\" accel=\"2.6\" decel=\"4.5\" sigma=\"0.5\"/>\n{flows}</routes>\n"
+            "<routes>\n  <vType id=\"human\" {car}/>\n  <vTypeDistribution id=\"ramp_mix\">\n    \
+             <vType id=\"ctrl\" {car} probability=\"1.0\"/>\n    <vType id=\"human_ramp\" {car} probability=\"0.0\"/>\n  \
+             </vTypeDistribution>\n{flows}</routes>\n"
         )
     }
 }

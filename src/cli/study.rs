@@ -1,0 +1,287 @@
+//! `mpgdrive study`: the penetration study ([`mpgdrive::batch::penetration`]). For each share
+//! of controllable vehicles, route files (`routes` with that share on the ramp and on the
+//! freeway) run as a batch of `cosim` workers, the game and SUMO's drivers alone on the same
+//! routes for every seed; then the table, the CSV and the plot.
+
+use crate::cli::common::{PolicyPair, SeedChoice, deployed_policy, print, usage};
+use anyhow::{Context, Result};
+use clap::Args;
+use mpgdrive::atomic;
+use mpgdrive::batch::penetration::{self, Conflicts, StudyRun, Trips};
+use mpgdrive::batch::routes::{DemandSpec, generate};
+use mpgdrive::batch::runner::{BatchEnd, BatchSettings, Combo, run_batch};
+use mpgdrive::config::Config;
+use mpgdrive::policy::Mode;
+use mpgdrive::sumo::MergeGeometry;
+use mpgdrive::sumo::geometry::PlayerControl;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Arguments of `mpgdrive study`.
+#[derive(Args)]
+pub struct StudyArgs {
+    /// Configuration file (TOML) passed to every run (as cosim's).
+    #[arg(long, default_value = "configs/traffic.toml")]
+    config: PathBuf,
+    /// SUMO configuration of the network; its first route file is the base demand.
+    #[arg(long, default_value = "sumo_nets/i80_merge/i80.sumocfg")]
+    sumocfg: PathBuf,
+    /// Merge geometry (default: merge.toml beside the .sumocfg). The study sets its `players`
+    /// to "controllable": the controllable vehicles play the game.
+    #[arg(long)]
+    merge: Option<PathBuf>,
+    #[command(flatten)]
+    policies: PolicyPair,
+    #[command(flatten)]
+    deploy: SeedChoice,
+    /// Shares of controllable vehicles among all vehicles (ramp and freeway alike),
+    /// comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0,0.1,0.3,0.5,1")]
+    shares: Vec<f64>,
+    /// Demand: a multiple of the base route file's flows.
+    #[arg(long, default_value_t = 1.2)]
+    demand: f64,
+    /// Seeds, comma-separated: each gives its own arrivals and SUMO's random seed.
+    #[arg(long, value_delimiter = ',', default_value = "0,1,2")]
+    seeds: Vec<u64>,
+    /// Simulated duration of each run (s); departures span it.
+    #[arg(long, default_value_t = 900.0)]
+    end: f64,
+    /// Worker processes at a time (default: the number of cores).
+    #[arg(long)]
+    jobs: Option<usize>,
+    /// Output directory: study.md, study.csv, study.png, merge.toml and one batch folder per
+    /// share (share_<percent>/: routes, runs, SUMO's outputs).
+    #[arg(long)]
+    out: PathBuf,
+    /// Skip runs whose result is already in --out.
+    #[arg(long)]
+    resume: bool,
+}
+
+/// The controllers of every run: the game, and SUMO's drivers alone.
+const CONTROLLERS: [&str; 2] = ["mpg", "sumo"];
+
+/// Runs `mpgdrive study`.
+pub fn run(args: StudyArgs) -> Result<ExitCode> {
+    let config = check_inputs(&args)?;
+    let merge_path = args
+        .merge
+        .clone()
+        .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
+    let mut merges = MergeGeometry::load_all(&merge_path)?;
+    let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
+    for geometry in &merges {
+        mpgdrive::sumo::inputs::check_geometry(geometry, &merge_path, &files.net)?;
+    }
+    let base = files.routes.first().cloned().ok_or_else(|| {
+        usage(format!(
+            "--sumocfg {}: names no route file",
+            args.sumocfg.display()
+        ))
+    })?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("{}", args.out.display()))?;
+    for g in &mut merges {
+        g.players = PlayerControl::Controllable;
+    }
+    let merge = args.out.join("merge.toml");
+    atomic::write(&merge, merge_toml(&merges)?).with_context(|| format!("{}", merge.display()))?;
+    let controllable: Vec<String> = merges.iter().flat_map(|g| g.controllable_types.clone()).collect();
+    let settings = |out: PathBuf| -> Result<BatchSettings> {
+        Ok(BatchSettings {
+            exe: std::env::current_exe().context("locating the mpgdrive binary")?,
+            common_args: worker_args(&args, &config, &merge)?,
+            out,
+            jobs: args
+                .jobs
+                .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
+            resume: args.resume,
+            timeout: None,
+        })
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
+        .context("installing the Ctrl-C handler")?;
+    let mut runs = Vec::new();
+    for &share in &args.shares {
+        let dir = args.out.join(format!("share_{:03.0}", share * 100.0));
+        let spec = DemandSpec {
+            scales: vec![args.demand],
+            ramp_share: None,
+            controllable_shares: vec![share],
+            mainline_share: Some(share),
+            seeds: args.seeds.clone(),
+            duration: args.end,
+        };
+        let manifest = generate(&base, &merges, &spec, &dir.join("routes"))?;
+        let todo: Vec<Combo> = manifest
+            .iter()
+            .flat_map(|m| {
+                let route = std::fs::canonicalize(dir.join("routes").join(&m.file)).unwrap_or_default();
+                CONTROLLERS.map(|c| Combo {
+                    route: route.clone(),
+                    controller: c.into(),
+                    seed: m.seed,
+                })
+            })
+            .collect();
+        eprintln!(
+            "study: controllable share {:.0}%: {} runs",
+            share * 100.0,
+            todo.len()
+        );
+        match run_batch(&settings(dir.clone())?, &todo, &stop, &mut |_| {})? {
+            BatchEnd::Stopped => {
+                eprintln!(
+                    "study stopped: finished runs are in {}; rerun with --resume",
+                    args.out.display()
+                );
+                return Ok(ExitCode::from(130));
+            }
+            BatchEnd::Done { failed: 0 } => {}
+            BatchEnd::Done { failed } => {
+                return Err(usage(format!(
+                    "{failed} runs failed: see {}",
+                    dir.join("summary.md").display()
+                )));
+            }
+        }
+        for combo in &todo {
+            runs.push(read_run(
+                &dir.join("work").join(combo.key()),
+                combo,
+                share,
+                args.end,
+                &controllable,
+            )?);
+        }
+    }
+    let rows = penetration::rows(&runs);
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let title = format!(
+        "Command: `{command}`\n\n`{}`, demand {} x the base route file, seeds {}, {} s runs; \
+         the controllable vehicles play the game (mpg policy), the others are SUMO's drivers. \
+         Mean ± sample standard deviation over seeds.\n\n",
+        args.sumocfg.display(),
+        args.demand,
+        args.seeds
+            .iter()
+            .map(u64::to_string)
+            .collect::<Vec<_>>()
+            .join(", "),
+        args.end
+    );
+    let md = title + &penetration::markdown(&rows);
+    atomic::write(&args.out.join("study.md"), &md).context("writing study.md")?;
+    atomic::write(&args.out.join("study.csv"), penetration::csv(&rows)).context("writing study.csv")?;
+    penetration::plot(&rows, &args.out.join("study.png"))?;
+    print(&md)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// One run's figures from its worker folder: SUMO's tripinfo and SSM files, and the worker's
+/// JSON (ego speed, collisions with a controlled vehicle).
+fn read_run(work: &Path, combo: &Combo, share: f64, end: f64, controllable: &[String]) -> Result<StudyRun> {
+    let c = &combo.controller;
+    let trips = Trips::read(&work.join(format!("tripinfo-{c}.xml")), controllable)?;
+    let conflicts = Conflicts::read(&work.join(format!("ssm-{c}.xml")))?;
+    let json = work.join("stdout.json");
+    let text = std::fs::read_to_string(&json).with_context(|| format!("{}", json.display()))?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}", json.display()))?;
+    let r = &value[0];
+    let egos = r["summary"]["episodes"].as_u64().unwrap_or(0);
+    let controlled_collisions = r["collisions"]
+        .as_array()
+        .map_or(0, |c| c.iter().filter(|e| e["controlled"] == true).count());
+    Ok(StudyRun {
+        share,
+        seed: combo.seed,
+        game: c == "mpg",
+        duration: end,
+        trips,
+        conflicts,
+        ego_speed: (egos > 0).then(|| r["summary"]["mean_speed"].as_f64()).flatten(),
+        controlled_collisions,
+    })
+}
+
+/// The merge geometries as a merge.toml (one table, or `[[merge]]` tables for several).
+fn merge_toml(merges: &[MergeGeometry]) -> Result<String> {
+    #[derive(serde::Serialize)]
+    struct List<'a> {
+        merge: &'a [MergeGeometry],
+    }
+    Ok(match merges {
+        [one] => toml::to_string(one)?,
+        all => toml::to_string(&List { merge: all })?,
+    })
+}
+
+/// What a worker would refuse is refused here, before any run.
+fn check_inputs(args: &StudyArgs) -> Result<Config> {
+    if !args.sumocfg.is_file() {
+        return Err(usage(format!(
+            "--sumocfg {}: no such file",
+            args.sumocfg.display()
+        )));
+    }
+    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
+    if !(args.end.is_finite() && args.end > 0.0) {
+        return Err(usage(format!(
+            "--end {}: must be a positive number of seconds",
+            args.end
+        )));
+    }
+    if !(args.demand.is_finite() && args.demand > 0.0) {
+        return Err(usage(format!(
+            "--demand {}: must be a positive number",
+            args.demand
+        )));
+    }
+    if let Some(s) = args.shares.iter().find(|s| !(0.0..=1.0).contains(*s)) {
+        return Err(usage(format!("--shares: {s} is not a share between 0 and 1")));
+    }
+    if args.shares.is_empty() || args.seeds.is_empty() {
+        return Err(usage("--shares and --seeds need at least one value each"));
+    }
+    if args.jobs == Some(0) {
+        return Err(usage("--jobs must be at least 1"));
+    }
+    deployed_policy(&args.policies.of(Mode::Mpg, &config)?, &args.deploy, &config)?;
+    Ok(config)
+}
+
+/// The `mpgdrive cosim` arguments every worker shares (absolute paths).
+fn worker_args(args: &StudyArgs, config: &Config, merge: &Path) -> Result<Vec<String>> {
+    let abs = |p: &Path| -> Result<String> {
+        Ok(std::fs::canonicalize(p)
+            .with_context(|| format!("{}", p.display()))?
+            .display()
+            .to_string())
+    };
+    let mut common = vec![
+        "cosim".to_string(),
+        "--config".into(),
+        abs(&crate::cli::bundled::resolve(&args.config)?)?,
+        "--sumocfg".into(),
+        abs(&args.sumocfg)?,
+        "--policy".into(),
+        abs(&args.policies.of(Mode::Mpg, config)?)?,
+        "--merge".into(),
+        abs(merge)?,
+        "--end".into(),
+        args.end.to_string(),
+        "--no-diagrams".into(),
+        "--ssm-all".into(),
+        "--ensemble".into(),
+        args.deploy.ensemble.name().into(),
+    ];
+    if let Some(seed) = args.deploy.policy_seed {
+        common.extend(["--policy-seed".into(), seed.to_string()]);
+    }
+    Ok(common)
+}

@@ -1,0 +1,193 @@
+//! The penetration study (`mpgdrive study`): SUMO's outputs read into its quantities (hand
+//! computed from written files), the rows and the share from which the game beats SUMO's
+//! drivers, and a short study in SUMO on a network built here, where at a share of 0 nobody is
+//! controlled and the game's figures are SUMO's drivers' exactly.
+
+mod common;
+
+use common::fresh_dir;
+use mpgdrive::batch::penetration::{Conflicts, Quantity, StudyRun, Trips, break_even, rows};
+
+#[test]
+fn trips_count_every_vehicle_with_its_insertion_delay() {
+    let dir = fresh_dir("study-trips");
+    let path = dir.join("tripinfo.xml");
+    std::fs::write(
+        &path,
+        r#"<tripinfos>
+    <tripinfo id="a" depart="1.00" departDelay="1.00" arrival="50.00" duration="49.00" routeLength="1000.00" timeLoss="2.00" vType="human"/>
+    <tripinfo id="b" depart="3.00" departDelay="0.00" arrival="60.00" duration="57.00" routeLength="500.00" timeLoss="4.00" vType="ctrl"/>
+    <tripinfo id="c" depart="80.00" departDelay="6.00" arrival="-1.00" duration="20.00" routeLength="250.00" timeLoss="3.00" vType="human" vaporized="end"/>
+</tripinfos>"#,
+    )
+    .unwrap();
+    let trips = Trips::read(&path, &["ctrl".to_string()]).unwrap();
+    // Losses with delays: a 3, b 4, c 9; the non-controllable a and c: 12 over 2.
+    assert_eq!((trips.vehicles, trips.arrived, trips.uncontrolled), (3, 2, 2));
+    assert!((trips.time_loss - 16.0).abs() < 1e-12);
+    assert!((trips.uncontrolled_time_loss - 12.0).abs() < 1e-12);
+    assert!((trips.vehicle_km - 1.75).abs() < 1e-12);
+    let run = StudyRun {
+        share: 0.3,
+        seed: 0,
+        game: true,
+        duration: 100.0,
+        trips,
+        conflicts: Conflicts { all: 7, severe: 0 },
+        ego_speed: None,
+        controlled_collisions: 0,
+    };
+    assert!((Quantity::TimeLoss.of(&run).unwrap() - 16.0 / 3.0).abs() < 1e-12);
+    assert!((Quantity::UncontrolledTimeLoss.of(&run).unwrap() - 6.0).abs() < 1e-12);
+    assert!((Quantity::Throughput.of(&run).unwrap() - 72.0).abs() < 1e-9); // 2 in 100 s
+    assert!((Quantity::Conflicts.of(&run).unwrap() - 4.0).abs() < 1e-12); // 7 over 1.75 km
+    assert_eq!(Quantity::EgoSpeed.of(&run), None);
+    std::fs::write(
+        &path,
+        "<tripinfos><tripinfo id=\"a\" timeLoss=\"x\"/></tripinfos>",
+    )
+    .unwrap();
+    let err = Trips::read(&path, &[]).unwrap_err().to_string();
+    assert!(err.contains("timeLoss"), "{err}");
+}
+
+#[test]
+fn conflicts_below_a_ttc_of_one_and_a_half_seconds_are_severe() {
+    let dir = fresh_dir("study-ssm");
+    let path = dir.join("ssm.xml");
+    std::fs::write(
+        &path,
+        r#"<SSMLog>
+    <conflict begin="1" end="5" ego="a" foe="b"><minTTC time="3" value="2.22"/><maxDRAC time="3" value="0.5"/></conflict>
+    <conflict begin="6" end="9" ego="b" foe="a"><minTTC time="7" value="1.20"/></conflict>
+    <conflict begin="9" end="10" ego="c" foe="d"><minTTC time="9" value="NA"/><maxDRAC time="9" value="3.4"/></conflict>
+</SSMLog>"#,
+    )
+    .unwrap();
+    assert_eq!(Conflicts::read(&path).unwrap(), Conflicts { all: 3, severe: 1 });
+}
+
+/// Runs at shares 0, 0.1, 0.3 and 0.5 with the game's time losses `game` (per vehicle) and
+/// SUMO's drivers' at 10 s each, two seeds each (the second 1 s more on both sides).
+fn study(game: [f64; 4]) -> Vec<StudyRun> {
+    let run = |share: f64, seed: u64, is_game: bool, loss: f64| StudyRun {
+        share,
+        seed,
+        game: is_game,
+        duration: 100.0,
+        trips: Trips {
+            vehicles: 10,
+            arrived: 10,
+            time_loss: 10.0 * (loss + seed as f64),
+            uncontrolled: 10,
+            uncontrolled_time_loss: 10.0 * (loss + seed as f64),
+            vehicle_km: 1.0,
+        },
+        conflicts: Conflicts::default(),
+        ego_speed: None,
+        controlled_collisions: usize::from(is_game),
+    };
+    [0.0, 0.1, 0.3, 0.5]
+        .iter()
+        .zip(game)
+        .flat_map(|(&share, g)| {
+            (0..2).flat_map(move |seed| [run(share, seed, true, g), run(share, seed, false, 10.0)])
+        })
+        .collect()
+}
+
+#[test]
+fn the_game_beats_its_drivers_from_the_share_on_which_it_stays_below() {
+    let r = rows(&study([10.0, 11.0, 9.0, 8.0]));
+    assert_eq!(r.len(), 4);
+    let loss = r[2].game[&Quantity::TimeLoss];
+    // Seeds 9 and 10 s: mean 9.5, sample sd sqrt(0.5).
+    assert!((loss.mean - 9.5).abs() < 1e-12 && (loss.sd - 0.5f64.sqrt()).abs() < 1e-12 && loss.runs == 2);
+    assert!((r[2].ratio(Quantity::TimeLoss).unwrap() - 9.5 / 10.5).abs() < 1e-12);
+    assert_eq!((r[2].seeds, r[2].controlled_collisions), (2, 2));
+    assert_eq!(break_even(&r), Some(0.3));
+    // Below at 10%, above at 30%: from 50% on.
+    assert_eq!(break_even(&rows(&study([10.0, 9.0, 11.0, 8.0]))), Some(0.5));
+    assert_eq!(break_even(&rows(&study([10.0, 9.0, 9.0, 10.5]))), None);
+}
+
+#[cfg(feature = "sumo")]
+#[test]
+fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() {
+    use common::bin;
+    let dir = fresh_dir("study-sumo");
+    let net = dir.join("net");
+    let out = bin()
+        .args([
+            "net",
+            "build",
+            "--form",
+            "acceleration",
+            "--accel-lane",
+            "150",
+            "--speed",
+            "30",
+        ])
+        .args([
+            "--lane-flow",
+            "900",
+            "--ramp-flow",
+            "400",
+            "--duration",
+            "120",
+            "--out",
+        ])
+        .arg(&net)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let sumocfg = net.join("merge.sumocfg");
+    let study = dir.join("study");
+    let out = bin()
+        .args([
+            "study",
+            "--shares",
+            "0,1",
+            "--seeds",
+            "0",
+            "--end",
+            "120",
+            "--sumocfg",
+        ])
+        .arg(&sumocfg)
+        .arg("--out")
+        .arg(&study)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let csv = std::fs::read_to_string(study.join("study.csv")).unwrap();
+    let value = |share: &str, quantity: &str, side: &str| -> f64 {
+        let line = csv
+            .lines()
+            .find(|l| l.starts_with(&format!("{share},{quantity},{side},")))
+            .unwrap_or_else(|| panic!("no {share} {quantity} {side} in\n{csv}"));
+        line.split(',').nth(3).unwrap().parse().unwrap()
+    };
+    for q in ["TimeLoss", "Throughput", "Conflicts"] {
+        assert_eq!(value("0", q, "game"), value("0", q, "sumo"), "{q} at share 0");
+    }
+    // At a share of 1 every vehicle is controllable: the ramp's egos drive, none is left over.
+    assert!(value("1", "EgoSpeed", "game") > 0.0);
+    assert!(!csv.contains("1,UncontrolledTimeLoss"));
+    let md = std::fs::read_to_string(study.join("study.md")).unwrap();
+    assert!(md.contains("| 100% | 1 |"), "{md}");
+    assert!(study.join("study.png").is_file());
+    // A share outside [0, 1] is refused before anything runs.
+    let bad = dir.join("bad");
+    let out = bin()
+        .args(["study", "--shares", "0,1.5", "--sumocfg"])
+        .arg(&sumocfg)
+        .arg("--out")
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--shares: 1.5"), "{err}");
+    assert!(!bad.exists());
+}
