@@ -171,19 +171,7 @@ fn find_routes(pattern: &str) -> Result<Vec<PathBuf>> {
 /// configuration, the duration, the geometry against its network, the policies. A route file
 /// a worker's cosim refuses is a failed run, recorded with its message.
 fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<Config> {
-    if !args.sumocfg.is_file() {
-        return Err(usage(format!(
-            "--sumocfg {}: no such file",
-            args.sumocfg.display()
-        )));
-    }
-    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
-    if !(args.end.is_finite() && args.end > 0.0) {
-        return Err(usage(format!(
-            "--end {}: must be a positive number of seconds",
-            args.end
-        )));
-    }
+    let config = check_run(&args.sumocfg, &args.config, args.end)?;
     let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
     let merge = args
         .merge
@@ -198,36 +186,67 @@ fn check_inputs(args: &BatchArgs, kinds: &[ControllerKind]) -> Result<Config> {
     Ok(config)
 }
 
+/// What every worker's run needs: the SUMO configuration exists, the configuration loads, the
+/// duration is a positive number of seconds. Returns the configuration.
+pub(crate) fn check_run(sumocfg: &Path, config: &Path, end: f64) -> Result<Config> {
+    if !sumocfg.is_file() {
+        return Err(usage(format!("--sumocfg {}: no such file", sumocfg.display())));
+    }
+    let config = Config::load(&crate::cli::bundled::resolve(config)?)?;
+    if !(end.is_finite() && end > 0.0) {
+        return Err(usage(format!(
+            "--end {end}: must be a positive number of seconds"
+        )));
+    }
+    Ok(config)
+}
+
 /// `path` made absolute (the workers run in their own directories).
-fn absolute(path: &Path) -> Result<PathBuf> {
+pub(crate) fn absolute(path: &Path) -> Result<PathBuf> {
     std::fs::canonicalize(path).with_context(|| format!("{}", path.display()))
 }
 
-/// The `mpgdrive cosim` arguments every worker shares (absolute paths).
-fn worker_args(args: &BatchArgs, config: &Config) -> Result<Vec<String>> {
+/// The `mpgdrive cosim` arguments every worker of a batch shares (absolute paths): the
+/// configuration, the SUMO configuration, the policies (`--policy` or `--sarl-policy` with a
+/// path), the duration and how a directory's seeds deploy.
+pub(crate) fn cosim_args(
+    config: &Path,
+    sumocfg: &Path,
+    policies: &[(&str, PathBuf)],
+    deploy: &SeedChoice,
+    end: f64,
+) -> Result<Vec<String>> {
     let abs = |p: &Path| -> Result<String> { Ok(absolute(p)?.display().to_string()) };
     let mut common = vec![
         "cosim".to_string(),
         "--config".into(),
-        abs(&crate::cli::bundled::resolve(&args.config)?)?,
+        abs(&crate::cli::bundled::resolve(config)?)?,
         "--sumocfg".into(),
-        abs(&args.sumocfg)?,
-        "--policy".into(),
-        abs(&args.policies.of(Mode::Mpg, config)?)?,
-        "--sarl-policy".into(),
-        abs(&args.policies.of(Mode::Sarl, config)?)?,
-        "--end".into(),
-        args.end.to_string(),
+        abs(sumocfg)?,
     ];
-    if let Some(seed) = args.deploy.policy_seed {
+    for (flag, path) in policies {
+        common.extend([flag.to_string(), abs(path)?]);
+    }
+    common.extend(["--end".into(), end.to_string()]);
+    if let Some(seed) = deploy.policy_seed {
         common.extend(["--policy-seed".into(), seed.to_string()]);
     }
-    common.extend(["--ensemble".into(), args.deploy.ensemble.name().into()]);
+    common.extend(["--ensemble".into(), deploy.ensemble.name().into()]);
+    Ok(common)
+}
+
+/// The `mpgdrive cosim` arguments every worker shares.
+fn worker_args(args: &BatchArgs, config: &Config) -> Result<Vec<String>> {
+    let policies = [
+        ("--policy", args.policies.of(Mode::Mpg, config)?),
+        ("--sarl-policy", args.policies.of(Mode::Sarl, config)?),
+    ];
+    let mut common = cosim_args(&args.config, &args.sumocfg, &policies, &args.deploy, args.end)?;
     if let Some(gate) = args.gate {
         common.extend(["--gate".into(), gate.to_string()]);
     }
     if let Some(m) = &args.merge {
-        common.extend(["--merge".into(), abs(m)?]);
+        common.extend(["--merge".into(), absolute(m)?.display().to_string()]);
     }
     Ok(common)
 }

@@ -3,6 +3,7 @@
 //! freeway) run as a batch of `cosim` workers, the game and SUMO's drivers alone on the same
 //! routes for every seed; then the table, the CSV and the plot.
 
+use crate::cli::batch::{absolute, check_run, cosim_args};
 use crate::cli::common::{PolicyPair, SeedChoice, deployed_policy, print, usage};
 use anyhow::{Context, Result};
 use clap::Args;
@@ -117,17 +118,15 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             duration: args.end,
         };
         let manifest = generate(&base, &merges, &spec, &dir.join("routes"))?;
-        let todo: Vec<Combo> = manifest
-            .iter()
-            .flat_map(|m| {
-                let route = std::fs::canonicalize(dir.join("routes").join(&m.file)).unwrap_or_default();
-                CONTROLLERS.map(|c| Combo {
-                    route: route.clone(),
-                    controller: c.into(),
-                    seed: m.seed,
-                })
-            })
-            .collect();
+        let mut todo = Vec::new();
+        for m in &manifest {
+            let route = absolute(&dir.join("routes").join(&m.file))?;
+            todo.extend(CONTROLLERS.map(|c| Combo {
+                route: route.clone(),
+                controller: c.into(),
+                seed: m.seed,
+            }));
+        }
         eprintln!(
             "study: controllable share {:.0}%: {} runs",
             share * 100.0,
@@ -223,19 +222,7 @@ fn merge_toml(merges: &[MergeGeometry]) -> Result<String> {
 
 /// What a worker would refuse is refused here, before any run.
 fn check_inputs(args: &StudyArgs) -> Result<Config> {
-    if !args.sumocfg.is_file() {
-        return Err(usage(format!(
-            "--sumocfg {}: no such file",
-            args.sumocfg.display()
-        )));
-    }
-    let config = Config::load(&crate::cli::bundled::resolve(&args.config)?)?;
-    if !(args.end.is_finite() && args.end > 0.0) {
-        return Err(usage(format!(
-            "--end {}: must be a positive number of seconds",
-            args.end
-        )));
-    }
+    let config = check_run(&args.sumocfg, &args.config, args.end)?;
     if !(args.demand.is_finite() && args.demand > 0.0) {
         return Err(usage(format!(
             "--demand {}: must be a positive number",
@@ -255,33 +242,16 @@ fn check_inputs(args: &StudyArgs) -> Result<Config> {
     Ok(config)
 }
 
-/// The `mpgdrive cosim` arguments every worker shares (absolute paths).
+/// The `mpgdrive cosim` arguments every worker shares: the game's policy, the study's merge.toml,
+/// SUMO's SSM device on every vehicle.
 fn worker_args(args: &StudyArgs, config: &Config, merge: &Path) -> Result<Vec<String>> {
-    let abs = |p: &Path| -> Result<String> {
-        Ok(std::fs::canonicalize(p)
-            .with_context(|| format!("{}", p.display()))?
-            .display()
-            .to_string())
-    };
-    let mut common = vec![
-        "cosim".to_string(),
-        "--config".into(),
-        abs(&crate::cli::bundled::resolve(&args.config)?)?,
-        "--sumocfg".into(),
-        abs(&args.sumocfg)?,
-        "--policy".into(),
-        abs(&args.policies.of(Mode::Mpg, config)?)?,
+    let policy = [("--policy", args.policies.of(Mode::Mpg, config)?)];
+    let mut common = cosim_args(&args.config, &args.sumocfg, &policy, &args.deploy, args.end)?;
+    common.extend([
         "--merge".into(),
-        abs(merge)?,
-        "--end".into(),
-        args.end.to_string(),
+        absolute(merge)?.display().to_string(),
         "--no-diagrams".into(),
         "--ssm-all".into(),
-        "--ensemble".into(),
-        args.deploy.ensemble.name().into(),
-    ];
-    if let Some(seed) = args.deploy.policy_seed {
-        common.extend(["--policy-seed".into(), seed.to_string()]);
-    }
+    ]);
     Ok(common)
 }
