@@ -316,7 +316,7 @@ fn cell(s: Option<&Spread>, decimals: usize) -> String {
 fn decimals(q: Quantity) -> usize {
     match q {
         Quantity::Throughput => 0,
-        Quantity::Conflicts | Quantity::SevereConflicts => 3,
+        Quantity::Conflicts | Quantity::SevereConflicts => 4,
         _ => 2,
     }
 }
