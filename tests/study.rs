@@ -177,6 +177,53 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
     let md = std::fs::read_to_string(study.join("study.md")).unwrap();
     assert!(md.contains("| 100% | 1 |"), "{md}");
     assert!(study.join("study.png").is_file());
+    // At a share of 1 every vehicle is controllable: the controllable players are every
+    // player, and the game drives exactly as with `players = "all"`.
+    let routes: Vec<_> = std::fs::read_dir(study.join("share_100/routes"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "xml"))
+        .collect();
+    let controllable = study.join("merge.toml");
+    let all = dir.join("merge_all.toml");
+    let text = std::fs::read_to_string(&controllable).unwrap();
+    std::fs::write(
+        &all,
+        text.replace("players = \"controllable\"", "players = \"all\""),
+    )
+    .unwrap();
+    let game = |merge: &std::path::Path| {
+        let out = bin()
+            .args([
+                "cosim",
+                "--controllers",
+                "mpg",
+                "--end",
+                "120",
+                "--no-diagrams",
+                "--json",
+                "--sumocfg",
+            ])
+            .arg(&sumocfg)
+            .arg("--route-files")
+            .arg(&routes[0])
+            .arg("--merge")
+            .arg(merge)
+            .arg("--out")
+            .arg(dir.join("game"))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (
+            v[0]["summary"].clone(),
+            v[0]["speed_overrides"].clone(),
+            v[0]["vehicle_seconds"].clone(),
+        )
+    };
+    let driven = game(&controllable);
+    assert!(driven.0["episodes"].as_u64().unwrap() > 0);
+    assert_eq!(driven, game(&all));
     // A share outside [0, 1] is refused before anything runs.
     let bad = dir.join("bad");
     let out = bin()

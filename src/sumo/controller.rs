@@ -713,6 +713,13 @@ impl Controller {
     /// network drops out; no player is added later.
     fn form_games(&mut self, sumo: &Sumo, cars: &[Car], time: f64) -> Result<Vec<Game>, SumoError> {
         let index: HashMap<&str, usize> = cars.iter().enumerate().map(|(k, c)| (c.id.as_str(), k)).collect();
+        if self.traffic && self.geometry.players == PlayerControl::Controllable {
+            // Merge traffic forms its games anew each step: the types of the vehicles around,
+            // which decide the players the policy may drive, are learned as they come.
+            for c in cars {
+                self.is_controllable(sumo, &c.id)?;
+            }
+        }
         let mut games = Vec::new();
         for (k, c) in cars.iter().enumerate() {
             let tracked = self.egos.get(&c.id);
@@ -1053,11 +1060,14 @@ impl Controller {
             PlayerControl::All if self.traffic => in_zone,
             PlayerControl::All => true,
             PlayerControl::Controllable => {
-                car.x < self.rules.conflict_point() + g.release_after
-                    && self
-                        .types
-                        .get(&car.id)
-                        .is_some_and(|t| g.controllable_types.contains(t))
+                (if self.traffic {
+                    in_zone
+                } else {
+                    car.x < self.rules.conflict_point() + g.release_after
+                }) && self
+                    .types
+                    .get(&car.id)
+                    .is_some_and(|t| g.controllable_types.contains(t))
             }
         }
     }
