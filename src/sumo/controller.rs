@@ -287,6 +287,17 @@ pub const WAITING_MARGIN: f64 = 2.0;
 /// gave the same grid rows as 2.0.
 pub const LANE_END_BRAKE: f64 = 2.0;
 
+/// How much farther (m) SUMO may move a vehicle in one step than the internal world predicts
+/// it: the world moves it by its speed before the step (eq. 1), SUMO by its speed after, so a
+/// follower accelerating at `g` gains `g dt^2`. The entry checks and the projection keep it on
+/// top of their clearance (SUMO counts a collision below `minGap`, the world's `safety_gap`):
+/// with the bare clearance, an ego entered at a standstill 0.0009 m above it in front of one
+/// that started at `g` in the same step, and SUMO counted a collision at 1.996 m (`acc60-v36`
+/// of the zoo, ego only, demand 1.2, SUMO seed 0, speed mode 0).
+fn sumo_step_reach(config: &Config) -> f64 {
+    config.vehicle.max_accel * config.sim.dt * config.sim.dt
+}
+
 impl Controller {
     /// A controller; `policy` is required for `mpg` and `sarl`. Every rule (observation,
     /// feasibility projection, merge gate, release) uses the network's conflict point, from
@@ -324,6 +335,7 @@ impl Controller {
             config.scenario.accel_lane = end - 0.5 * config.vehicle.length - config.scenario.conflict_point;
             rules = WorldRules::new(&config);
         }
+        rules.gate.clearance += sumo_step_reach(&config);
         Controller {
             config,
             rules,
@@ -916,8 +928,11 @@ impl Controller {
                 };
                 let scene_leader = nb.lane_leader.map(|l| scene_cars[si][l]);
                 let rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
+                // A junction merge's ramp vehicle enters where it crosses the stop line, so the
+                // stop line's rule holds it (`stop_line_bound`), not a lane change's.
+                let junction_ramp = self.is_junction() && cars[j].on_ramp;
                 let settled = Settled {
-                    held: None,
+                    held: junction_ramp.then_some(false),
                     leader_next_v: scene_leader.and_then(|l| next_v.get(&l).copied()),
                 };
                 let mut a = applied_action_with(
@@ -1033,10 +1048,17 @@ impl Controller {
     /// front at the line ([`stop_bound`]). SUMO's drivers wait at the line the same way: a
     /// minor link yields. Like the acceleration lane's change, this is the world's rule, not a
     /// shield: it applies with or without `--gate` and whatever SUMO's speed mode.
+    /// Under the entry rule (`scenario.entry = "gap"`) the check is the entry rule's, a human
+    /// follower's secure gap at the crossing, and it replaces the acceleration lane's check of
+    /// a lane change now ([`crate::world::merge_gate::lane_end_holds`]): a vehicle 25 m before
+    /// the line at 24 m/s whose lane change "now" turned unsafe was braked at `g` and crossed
+    /// at 4.5 m/s in front of a car at 28 m/s (`junction-v30-curved` of the zoo, the game,
+    /// demand 0.8, SUMO seed 2, speed mode 0: a collision). The crossing check lets a vehicle
+    /// that can no longer stop at `g` go on: it crosses at its speed.
     fn stop_line_bound(&self, cars: &[Car], j: usize, rules: &WorldRules) -> Option<f64> {
         let car = &cars[j];
-        if !self.is_junction() || !car.on_ramp || self.entry_rule() {
-            return None; // under the entry rule the world's lane end holds it
+        if !self.is_junction() || !car.on_ramp {
+            return None;
         }
         let mut line = rules.gate;
         line.conflict_point = self.lane_end? - 0.5 * rules.length;
@@ -1300,8 +1322,10 @@ mod tests {
         // Paper setting: 5 m cars, 2 m safety gap, tau_s = 3 s, dt = 0.1 s. A waiting ego 7 m
         // (centre to centre) behind a target-lane car at its own 10 m/s is at its clearance:
         // merged, it may keep its speed (a = 0 is feasible); waiting, its clearance is 9 m,
-        // so it must fall back: v' <= 10 + (7 - 9) / 3, a <= -6.67 m/s^2.
+        // so it must fall back: v' <= 10 + (7 - 9) / 3, a <= -6.67 m/s^2. Both clearances
+        // also hold SUMO's step, r = g dt^2: a falls by r / (tau_s dt) more.
         let c = paper_controller();
+        let r = sumo_step_reach(&c.config) / 0.3;
         let waiting = waiting_car("ego", 180.0, 10.0);
         let merged = car("ego", 180.0, 10.0, false);
         let scene = Scene::new(vec![
@@ -1311,8 +1335,8 @@ mod tests {
         let mut nb = Vec::new();
         find_neighbors(&scene, &mut Vec::new(), &mut nb);
         let act = |car: &Car| applied_action(&c.rules_for(car, None), true, &scene, 0, &nb[0], 0.0);
-        assert!(act(&merged).abs() < 1e-9);
-        assert!((act(&waiting) + 20.0 / 3.0).abs() < 1e-9, "{}", act(&waiting));
+        assert!((act(&merged) + r).abs() < 1e-9, "{}", act(&merged));
+        assert!((act(&waiting) + 20.0 / 3.0 + r).abs() < 1e-9, "{}", act(&waiting));
         // With a 1 s time gap the projection asks the gap itself and there is no margin: the
         // leader 15 m ahead, v' <= (10 + (15 - 7) / 3) / (1 + 1 / 3) = 9.5, a <= -5 m/s^2,
         // waiting or merged (with the margin, (10 + 6 / 3) / (4 / 3) = 9: -10).
@@ -1323,8 +1347,9 @@ mod tests {
             car("lead", 195.0, 10.0, false).vehicle(3.66),
         ]);
         let act = |car: &Car| applied_action(&c.rules_for(car, None), true, &scene, 0, &nb[0], 0.0);
-        assert!((act(&merged) + 5.0).abs() < 1e-9, "{}", act(&merged));
-        assert!((act(&waiting) + 5.0).abs() < 1e-9, "{}", act(&waiting));
+        // (SUMO's step: (4/3)^-1 r more.)
+        assert!((act(&merged) + 5.0 + 0.75 * r).abs() < 1e-9, "{}", act(&merged));
+        assert!((act(&waiting) + 5.0 + 0.75 * r).abs() < 1e-9, "{}", act(&waiting));
     }
 
     #[test]
@@ -1332,8 +1357,10 @@ mod tests {
         // Paper setting (7 m clearance, tau_s = 3 s, dt = 0.1 s). Target-lane car F 8 m
         // (centre to centre) behind W, both at 10 m/s. Behind a merged W it may keep its
         // speed (v' <= 10 + (8 - 7) / 3); behind a waiting W its clearance is 9 m, so
-        // v' <= 10 + (8 - 9) / 3: a <= -10/3 m/s^2.
+        // v' <= 10 + (8 - 9) / 3: a <= -10/3 m/s^2, and SUMO's step r = g dt^2 on top of
+        // either clearance, r / (tau_s dt) more.
         let c = paper_controller();
+        let r = sumo_step_reach(&c.config) / 0.3;
         let merged = car("W", 190.0, 10.0, false);
         let waiting = waiting_car("W", 190.0, 10.0);
         let follower = car("F", 182.0, 10.0, false);
@@ -1352,7 +1379,7 @@ mod tests {
             )
         };
         assert!(act(&merged).abs() < 1e-9, "{}", act(&merged));
-        assert!((act(&waiting) + 10.0 / 3.0).abs() < 1e-9, "{}", act(&waiting));
+        assert!((act(&waiting) + 10.0 / 3.0 + r).abs() < 1e-9, "{}", act(&waiting));
     }
 
     #[test]
@@ -1361,15 +1388,16 @@ mod tests {
         // ramp vehicle R at 170 m and 10 m/s; a second waiting vehicle farther ahead and a
         // target-lane car in between do not count. One step on, the bumper gap less the
         // 2 m safety gap is 190 - 171 - 7 = 12 m, so v' <= 0 + 12 / 3 = 4: a <= -60 m/s^2
-        // (before the clip to -g).
+        // (before the clip to -g), and r / (tau_s dt) more for SUMO's step r = g dt^2.
         let c = paper_controller();
+        let r = sumo_step_reach(&c.config) / 0.3;
         let w = waiting_car("W", 190.0, 0.0);
         let mut far = w.clone();
         far.x = 200.0;
         let cars = [car("R", 170.0, 10.0, true), far, car("T", 180.0, 10.0, false), w];
         let rules = c.rules_for(&cars[0], None);
         let hi = ramp_leader_bound(&cars, 0, None, &rules).expect("a ramp leader");
-        assert!((hi + 60.0).abs() < 1e-9, "{hi}");
+        assert!((hi + 60.0 + r).abs() < 1e-9, "{hi}");
         // Already its leader in the scene: the projection has it; a target-lane car: none.
         assert_eq!(ramp_leader_bound(&cars, 0, Some(3), &rules), None);
         assert_eq!(ramp_leader_bound(&cars, 2, None, &rules), None);
