@@ -179,7 +179,7 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
     assert!(study.join("study.png").is_file());
     // At a share of 1 every vehicle is controllable: the controllable players are every
     // player, and the game drives exactly as with `players = "all"`.
-    let routes: Vec<_> = std::fs::read_dir(study.join("share_100/routes"))
+    let routes: Vec<_> = std::fs::read_dir(study.join("share_100.0/routes"))
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "xml"))
@@ -224,17 +224,26 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
     let driven = game(&controllable);
     assert!(driven.0["episodes"].as_u64().unwrap() > 0);
     assert_eq!(driven, game(&all));
-    // A share outside [0, 1] is refused before anything runs.
+    // A share outside [0, 1], or two shares within 0.05% (one folder), is refused before
+    // anything runs.
     let bad = dir.join("bad");
-    let out = bin()
-        .args(["study", "--shares", "0,1.5", "--sumocfg"])
-        .arg(&sumocfg)
-        .arg("--out")
-        .arg(&bad)
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("--shares: 1.5"), "{err}");
-    assert!(!bad.exists());
+    for (shares, message) in [
+        ("0,1.5", "--shares: 1.5"),
+        (
+            "0.3,0.3004",
+            "--shares: 0.3 and 0.3004 would share the folder share_030.0",
+        ),
+    ] {
+        let out = bin()
+            .args(["study", "--shares", shares, "--sumocfg"])
+            .arg(&sumocfg)
+            .arg("--out")
+            .arg(&bad)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(message), "{err}");
+        assert!(!bad.exists());
+    }
 }

@@ -108,7 +108,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
         .context("installing the Ctrl-C handler")?;
     let mut runs = Vec::new();
     for &share in &args.shares {
-        let dir = args.out.join(format!("share_{:03.0}", share * 100.0));
+        let dir = args.out.join(share_folder(share));
         let spec = DemandSpec {
             scales: vec![args.demand],
             ramp_share: None,
@@ -235,11 +235,27 @@ fn check_inputs(args: &StudyArgs) -> Result<Config> {
     if args.shares.is_empty() || args.seeds.is_empty() {
         return Err(usage("--shares and --seeds need at least one value each"));
     }
+    for (k, a) in args.shares.iter().enumerate() {
+        if let Some(b) = args.shares[..k]
+            .iter()
+            .find(|b| share_folder(**b) == share_folder(*a))
+        {
+            return Err(usage(format!(
+                "--shares: {b} and {a} would share the folder {} (give shares at least 0.1% apart)",
+                share_folder(*a)
+            )));
+        }
+    }
     if args.jobs == Some(0) {
         return Err(usage("--jobs must be at least 1"));
     }
     deployed_policy(&args.policies.of(Mode::Mpg, &config)?, &args.deploy, &config)?;
     Ok(config)
+}
+
+/// The folder of a share's runs, in per cent to 0.1: `share_030.0` for 0.3.
+fn share_folder(share: f64) -> String {
+    format!("share_{:05.1}", share * 100.0)
 }
 
 /// The `mpgdrive cosim` arguments every worker shares: the game's policy, the study's merge.toml,
