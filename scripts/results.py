@@ -154,8 +154,7 @@ def acceptance(kind, folder):
         sys.exit(f"results: {path} was run with SUMO's safe speed {'off' if alone else 'on'}: "
                  f"it is `scripts/results.py {'zoo-alone' if alone else kind} DIR`'s")
     body = re.sub(r"^# .*\n+", "", body, count=1)
-    script = {"grid": "traffic_acceptance.sh", "zoo": "zoo_acceptance.sh",
-              "zoo-alone": "zoo_acceptance.sh"}[kind]
+    script = "traffic_acceptance.sh" if kind == "grid" else "zoo_acceptance.sh"
     env = "SPEED_MODE=0 " if alone else ""
     write(f"{kind}.md", header(kind, f"{env}scripts/{script} DIR && scripts/results.py {kind} DIR")
           + body)
