@@ -210,6 +210,13 @@ pub struct SimConfig {
     /// absent (files written before it existed).
     #[serde(default = "yes")]
     pub project_non_learning: bool,
+    /// With `feasibility`: a policy-driven target-lane player keeps the projection's gap behind
+    /// the first ramp vehicle ahead of it in the merge zone too, when that asks no harder
+    /// braking than `b_safe` ([`crate::world::step::applied_action_with`]): it
+    /// makes room for a vehicle that signals, as SUMO's drivers and the cooperative human
+    /// drivers of `traffic.cooperation` do. Off when absent (the paper's players).
+    #[serde(default)]
+    pub players_make_room: bool,
     /// End the episode for everyone at the first collision.
     pub terminate_on_collision: bool,
     /// With termination: charge each player its collision-step reward for every remaining

@@ -12,7 +12,7 @@ use crate::engine::tape::Var;
 use crate::game::reward::{speed_weight, tail_weight};
 use crate::game::terms;
 use crate::num::Num;
-use crate::world::drivers::{makes_room, yield_length, yields_to};
+use crate::world::drivers::{makes_room, player_makes_room_for, yield_length, yields_to};
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::Road;
 use crate::world::idm::{idm_accel, idm_v0};
@@ -249,7 +249,7 @@ pub fn idm_actions(config: &Config, batch: &TensorBatch, nb: &NeighborIndex) -> 
         Some(mask) => {
             let room = behind(&leader, yield_length(config));
             let yields: Vec<f64> = (mask.iter().zip(room.values()))
-                .map(|(&m, &r)| f64::from(u8::from(m && makes_room(r, config))))
+                .map(|(&m, &r)| f64::from(u8::from(m && makes_room(r, config.sim.b_safe))))
                 .collect();
             let yields = Var::constant(yields, room.rows(), room.cols());
             Var::select(&yields, &lane.min(&room), &lane)
@@ -353,6 +353,11 @@ fn limits_once(
         let next = leader_next.unwrap_or(&lead.v);
         let (lo, hi) = feasible_interval_after(&batch.x, &batch.v, &lead, next, &follow, &rules.projection());
         let lane = project_feasible(raw, &lo, &hi);
+        let lane = if rules.players_make_room {
+            make_room(rules, batch, &lane)
+        } else {
+            lane
+        };
         if rules.merge_gate || batch.any_human() {
             merge_gate(rules, batch, &lane)
         } else {
@@ -371,6 +376,41 @@ fn limits_once(
         a
     };
     clip_action(&a, &batch.v, rules.max_accel, rules.v_min, rules.v_max, dt)
+}
+
+/// `sim.players_make_room` on `a`: a player that makes room for its nearest leader, a ramp
+/// vehicle in the merge zone ([`player_makes_room_for`]), gets `min(a, room)`, `room` being the
+/// projection's bound behind that vehicle, when braking at `sim.b_safe` or less does it (as
+/// [`crate::world::step::applied_action_with`]).
+fn make_room(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
+    let (rows, n) = (batch.x.rows(), batch.x.cols());
+    let (mut mask, mut index) = (Vec::with_capacity(rows * n), Vec::with_capacity(rows * n));
+    for scene in batch.scenes().iter() {
+        for i in 0..n {
+            let j = player_makes_room_for(&rules.road, scene, i);
+            mask.push(j.is_some());
+            index.push(j.unwrap_or(i));
+        }
+    }
+    if !mask.contains(&true) {
+        return a.clone();
+    }
+    let index: std::rc::Rc<[usize]> = index.into();
+    let ramp = Neighbor {
+        x: batch.x.gather_cols(&index),
+        v: batch.v.gather_cols(&index),
+        present: Var::constant(mask.iter().map(|&m| f64::from(u8::from(m))).collect(), rows, n),
+    };
+    let absent = Neighbor {
+        x: batch.x.clone(),
+        v: batch.v.clone(),
+        present: Var::constant(vec![0.0; rows * n], rows, n),
+    };
+    let (_, room) = feasible_interval_after(&batch.x, &batch.v, &ramp, &ramp.v, &absent, &rules.projection());
+    let chosen = (mask.iter().zip(room.values()))
+        .map(|(&m, &r)| f64::from(u8::from(m && makes_room(r, rules.gate.b_safe))))
+        .collect();
+    Var::select(&Var::constant(chosen, rows, n), &a.min(&room), a)
 }
 
 /// The merge gate on `a`: ramp players it holds get `min(a, stop bound)` (every player with

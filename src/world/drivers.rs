@@ -40,7 +40,7 @@ pub fn driver_accel(config: &Config, driver: Driver, scene: &Scene, i: usize, n:
                 lane.min(behind(n.leader))
             } else if let Some(j) = yields_to(&Road::new(config), scene, i, n.leader) {
                 let room = behind_by(Some(j), yield_length(config));
-                if makes_room(room, config) {
+                if makes_room(room, config.sim.b_safe) {
                     lane.min(room)
                 } else {
                     lane
@@ -63,8 +63,8 @@ pub fn yield_length(config: &Config) -> f64 {
 /// makes room for it: only when that asks no harder braking than `sim.b_safe` (SUMO's drivers
 /// cooperate within their comfortable deceleration). One already too close drives on past it,
 /// rather than stop beside it and block its entry.
-pub fn makes_room(room: f64, config: &Config) -> bool {
-    room >= -config.sim.b_safe
+pub fn makes_room(room: f64, b_safe: f64) -> bool {
+    room >= -b_safe
 }
 
 /// The ramp vehicle a human target-lane driver `i` makes room for, as SUMO's drivers do for a
@@ -76,6 +76,23 @@ pub fn yields_to(road: &Road, scene: &Scene, i: usize, leader: Option<usize>) ->
     let yields =
         scene.is_yielding(i) && !scene.vehicles[i].on_ramp && other.on_ramp && road.in_merge_zone(other.x);
     yields.then_some(j)
+}
+
+/// The ramp vehicle a policy-driven target-lane player `i` makes room for under
+/// `sim.players_make_room` ([`crate::world::step::applied_action_with`]): the first ramp
+/// vehicle ahead of it in the merge zone, whatever target-lane vehicles are in between (its
+/// nearest leader only: on `i80_merge` the game's egos drove at 9.6 m/s against 10.2, the
+/// followers of a car too close to make room saw the ramp vehicle only once it had passed). A
+/// human driver yields by its own rule ([`yields_to`]).
+pub fn player_makes_room_for(road: &Road, scene: &Scene, i: usize) -> Option<usize> {
+    let me = &scene.vehicles[i];
+    if scene.is_human(i) || me.on_ramp {
+        return None;
+    }
+    (scene.vehicles.iter().enumerate())
+        .filter(|(_, r)| r.on_ramp && r.x > me.x && road.in_merge_zone(r.x))
+        .min_by(|(_, p), (_, q)| p.x.total_cmp(&q.x))
+        .map(|(j, _)| j)
 }
 
 #[cfg(test)]
@@ -123,7 +140,49 @@ mod tests {
         // would need far more (gap 0.5 m against s* = 2 + 15 + 10 * 10 / (2 sqrt 1.5) = 57.8 m),
         // so it drives on past it, at the free-road acceleration.
         assert!((accel(&config, (140.5, 0.0), (133.0, 10.0), true) - free).abs() < 1e-12);
-        assert!(!makes_room(-4.01, &config) && makes_room(-4.0, &config));
+        assert!(!makes_room(-4.01, config.sim.b_safe) && makes_room(-4.0, config.sim.b_safe));
+    }
+
+    #[test]
+    fn a_player_makes_room_for_the_first_ramp_vehicle_ahead_in_the_merge_zone() {
+        // configs/traffic.toml: x_c 180, merge zone from 140 m, clearance 7 m, time gap 1 s,
+        // tau_s 3 s, dt 0.1 s, b_safe 4. Ramp vehicle R at 164.8 m, 4 m/s; target-lane car T at
+        // 150 m and player P at 130 m, both at 10 m/s.
+        use crate::world::rules::WorldRules;
+        use crate::world::step::applied_action;
+        let mut config = traffic_config();
+        let scene = Scene::new(vec![
+            at(164.8, 4.0, true),
+            at(150.0, 10.0, false),
+            at(130.0, 10.0, false),
+        ]);
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&scene, &mut order, &mut nb);
+        let act = |config: &Config, scene: &Scene, i: usize| {
+            applied_action(&WorldRules::new(config), true, scene, i, &nb[i], 0.0)
+        };
+        let road = Road::new(&config);
+        assert_eq!(player_makes_room_for(&road, &scene, 2), Some(0));
+        // P behind R: one step on the gap less the clearance is 164.8 + 0.4 - 131 - 7 = 27.2 m,
+        // so v' <= (4 + 27.2 / 3) / (1 + 1 / 3) = 9.8: a = -2, within b_safe. Behind T alone
+        // (13 m) it could keep its speed.
+        config.sim.players_make_room = true;
+        assert!(
+            (act(&config, &scene, 2) + 2.0).abs() < 1e-9,
+            "{}",
+            act(&config, &scene, 2)
+        );
+        // T is too close to R to make room (v' <= (4 + 7.2 / 3) * 0.75 = 4.8: a = -52): it
+        // drives on past it.
+        assert_eq!(act(&config, &scene, 1), 0.0);
+        // A human driver yields by its own rule only; without the setting nobody does.
+        let human = Scene {
+            humans: vec![false, false, true],
+            ..scene.clone()
+        };
+        assert_eq!(player_makes_room_for(&road, &human, 2), None);
+        config.sim.players_make_room = false;
+        assert_eq!(act(&config, &scene, 2), 0.0);
     }
 
     #[test]

@@ -42,6 +42,9 @@ pub struct WorldRules {
     pub merge_gate: bool,
     /// The merge gate's parameters (clearance, braking, horizon).
     pub gate: GateRules,
+    /// Whether policy-driven target-lane players make room for a ramp vehicle in the merge
+    /// zone ahead of them (`sim.players_make_room`).
+    pub players_make_room: bool,
 }
 
 impl WorldRules {
@@ -65,6 +68,7 @@ impl WorldRules {
             sequential: config.sim.projection_order == crate::config::ProjectionOrder::Sequential,
             merge_gate: config.sim.merge_gate,
             gate: GateRules::new(config),
+            players_make_room: config.sim.players_make_room,
         }
     }
 

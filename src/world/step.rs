@@ -2,6 +2,7 @@
 //! gate, limits), eq. (1) with zero steering, and collisions between bounding boxes. One set of
 //! rules for the scalar rollout, the NGSIM replay and the SUMO co-simulation.
 
+use crate::world::drivers::{makes_room, player_makes_room_for};
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
@@ -99,6 +100,22 @@ pub fn applied_action_with(
         let lead_next = settled.leader_next_v.unwrap_or(lead.v);
         let (lo, hi) = feasible_interval_after(&me.x, &me.v, &lead, &lead_next, &follow, &rules.projection());
         a = project_feasible(&a, &lo, &hi);
+        if rules.players_make_room {
+            if let Some(j) = player_makes_room_for(&rules.road, scene, i) {
+                let ramp = neighbor_of(scene, Some(j), me);
+                let (_, room) = feasible_interval_after(
+                    &me.x,
+                    &me.v,
+                    &ramp,
+                    &ramp.v,
+                    &neighbor_of(scene, None, me),
+                    &rules.projection(),
+                );
+                if makes_room(room, rules.gate.b_safe) {
+                    a = a.min(room);
+                }
+            }
+        }
     }
     if feasibility && (rules.merge_gate || scene.is_human(i)) && gate_holds(scene, i, &rules.gate) {
         a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
