@@ -146,7 +146,14 @@ struct Car {
     on_ramp: bool,
     /// Ramp lane id while on a ramp lane.
     ramp_lane: Option<String>,
+    /// A ramp-lane vehicle's leader on its route as SUMO sees it (within
+    /// [`PATH_LEADER_REACH`]): at a gore it can be a vehicle already on a target lane whose
+    /// rear is still in the ramp vehicle's path.
+    path_leader: Option<String>,
 }
+
+/// How far ahead (m) SUMO is asked for a ramp-lane vehicle's leader on its route.
+const PATH_LEADER_REACH: f64 = 100.0;
 
 impl Car {
     /// A ramp vehicle past its scene entry that SUMO has not moved to the target lane yet:
@@ -710,9 +717,14 @@ impl Controller {
                 None => (s.speed, s.accel),
             };
             self.lane_class.insert(id.clone(), lane.clone());
+            let path_leader = match ramp {
+                true => sumo.leader(&id, PATH_LEADER_REACH)?.map(|(leader, _)| leader),
+                false => None,
+            };
             cars.push(Car {
                 on_ramp: ramp && x < in_lane_from,
                 ramp_lane: ramp.then_some(lane),
+                path_leader,
                 id,
                 x,
                 v,
@@ -1129,16 +1141,21 @@ fn pass_beside_waiting(cars: &[Car], game: &Game, scene: &Scene, nb: &mut [Neigh
 }
 
 /// The feasibility projection's upper bound (TTC >= tau_s, `rules`' clearance) of ramp-lane
-/// vehicle `j` towards the vehicle physically ahead of it on the ramp lanes, when that is not
-/// already its leader in the scene (`scene_leader`). A ramp vehicle past its scene entry is in
-/// the scene's target lane, so the ramp vehicle behind it no longer had it as a leader, nor
-/// did a waiting one that had a target-lane car between them in the scene; both closed in on
-/// it until SUMO's safe speed braked them. The observation stays the scene's.
+/// vehicle `j` towards the vehicle physically ahead of it on the ramp lanes or on its route
+/// (its SUMO leader), when that is not already its leader in the scene (`scene_leader`). A
+/// ramp vehicle past its scene entry is in the scene's target lane, so the ramp vehicle behind
+/// it no longer had it as a leader, nor did a waiting one that had a target-lane car between
+/// them in the scene; both closed in on it until SUMO's safe speed braked them. Without that
+/// shield, a ramp vehicle that SUMO moved to the target lane at the gore, its rear still on
+/// the junction, was run into by the one behind (zoo `acc60-v36`, speed mode 0). The
+/// observation stays the scene's.
 fn ramp_leader_bound(cars: &[Car], j: usize, scene_leader: Option<usize>, rules: &WorldRules) -> Option<f64> {
     let me = &cars[j];
     me.ramp_lane.as_ref()?;
+    let ahead_on_path =
+        |k: usize| cars[k].ramp_lane.is_some() || me.path_leader.as_ref() == Some(&cars[k].id);
     let k = (0..cars.len())
-        .filter(|&k| k != j && cars[k].ramp_lane.is_some() && cars[k].x > me.x)
+        .filter(|&k| k != j && ahead_on_path(k) && cars[k].x > me.x)
         .min_by(|&a, &b| cars[a].x.total_cmp(&cars[b].x))
         .filter(|&k| Some(k) != scene_leader)?;
     let leader = Neighbor {
@@ -1212,6 +1229,7 @@ mod tests {
             accel: 0.0,
             on_ramp,
             ramp_lane: on_ramp.then(|| "merge_0".to_owned()),
+            path_leader: None,
         }
     }
 
@@ -1404,6 +1422,25 @@ mod tests {
         // Already its leader in the scene: the projection has it; a target-lane car: none.
         assert_eq!(ramp_leader_bound(&cars, 0, Some(3), &rules), None);
         assert_eq!(ramp_leader_bound(&cars, 2, None, &rules), None);
+    }
+
+    #[test]
+    fn a_ramp_vehicle_keeps_its_ttc_to_its_sumo_leader_that_left_the_ramp_lanes() {
+        // SUMO moved L to the target lane at the gore (centre 500.6 m, 0.6 m/s), its rear
+        // still on the junction in R's path: SUMO reports it as R's leader. R at 493.3 m and
+        // 11 m/s: one step on, 500.66 - 494.4 - 7 = -0.74 m, v' <= 0.6 - 0.74 / 3, a <= -106.5
+        // m/s^2 less SUMO's step reach. Not its SUMO leader, a target-lane car does not count.
+        let c = paper_controller();
+        let r = sumo_step_reach(&c.config) / 0.3;
+        let mut ramp = car("R", 493.3, 11.0, true);
+        let cars = [ramp.clone(), car("L", 500.6, 0.6, false)];
+        let rules = c.rules_for(&cars[0], None);
+        assert_eq!(ramp_leader_bound(&cars, 0, None, &rules), None);
+        ramp.path_leader = Some("L".to_owned());
+        let cars = [ramp, cars[1].clone()];
+        let hi = ramp_leader_bound(&cars, 0, None, &rules).expect("its SUMO leader");
+        let expected = (0.6 - 0.74 / 3.0 - 11.0) / 0.1 - r;
+        assert!((hi - expected).abs() < 1e-9, "{hi} against {expected}");
     }
 
     #[test]
