@@ -717,9 +717,10 @@ impl Controller {
                 None => (s.speed, s.accel),
             };
             self.lane_class.insert(id.clone(), lane.clone());
-            let path_leader = match ramp {
-                true => sumo.leader(&id, PATH_LEADER_REACH)?.map(|(leader, _)| leader),
-                false => None,
+            let path_leader = if ramp {
+                sumo.leader(&id, PATH_LEADER_REACH)?.map(|(leader, _)| leader)
+            } else {
+                None
             };
             cars.push(Car {
                 on_ramp: ramp && x < in_lane_from,
