@@ -378,8 +378,8 @@ fn limits_once(
     clip_action(&a, &batch.v, rules.max_accel, rules.v_min, rules.v_max, dt)
 }
 
-/// `sim.players_make_room` on `a`: a player that makes room for its nearest leader, a ramp
-/// vehicle in the merge zone ([`player_makes_room_for`]), gets `min(a, room)`, `room` being the
+/// `sim.players_make_room` on `a`: a player that makes room for the first ramp vehicle ahead of
+/// it in the merge zone ([`player_makes_room_for`]) gets `min(a, room)`, `room` being the
 /// projection's bound behind that vehicle, when braking at `sim.b_safe` or less does it (as
 /// [`crate::world::step::applied_action_with`]).
 fn make_room(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {

@@ -80,10 +80,10 @@ pub fn yields_to(road: &Road, scene: &Scene, i: usize, leader: Option<usize>) ->
 
 /// The ramp vehicle a policy-driven target-lane player `i` makes room for under
 /// `sim.players_make_room` ([`crate::world::step::applied_action_with`]): the first ramp
-/// vehicle ahead of it in the merge zone, whatever target-lane vehicles are in between (its
-/// nearest leader only: on `i80_merge` the game's egos drove at 9.6 m/s against 10.2, the
-/// followers of a car too close to make room saw the ramp vehicle only once it had passed). A
-/// human driver yields by its own rule ([`yields_to`]).
+/// vehicle ahead of it in the merge zone, whatever target-lane vehicles are in between. With
+/// its nearest leader only, the followers of a car too close to make room saw the ramp vehicle
+/// only once it had passed (`i80_merge`, the game: 9.6 m/s against 10.2). A human driver
+/// yields by its own rule ([`yields_to`]).
 pub fn player_makes_room_for(road: &Road, scene: &Scene, i: usize) -> Option<usize> {
     let me = &scene.vehicles[i];
     if scene.is_human(i) || me.on_ramp {
