@@ -12,7 +12,7 @@ use crate::engine::tape::Var;
 use crate::game::reward::{speed_weight, tail_weight};
 use crate::game::terms;
 use crate::num::Num;
-use crate::world::drivers::{makes_room, player_makes_room_for, yield_length, yields_to};
+use crate::world::drivers::{make_room_bound, makes_room, player_makes_room_for, yield_length, yields_to};
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::Road;
 use crate::world::idm::{idm_accel, idm_v0};
@@ -401,12 +401,7 @@ fn make_room(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
         v: batch.v.gather_cols(&index),
         present: Var::constant(mask.iter().map(|&m| f64::from(u8::from(m))).collect(), rows, n),
     };
-    let absent = Neighbor {
-        x: batch.x.clone(),
-        v: batch.v.clone(),
-        present: Var::constant(vec![0.0; rows * n], rows, n),
-    };
-    let (_, room) = feasible_interval_after(&batch.x, &batch.v, &ramp, &ramp.v, &absent, &rules.projection());
+    let room = make_room_bound(&batch.x, &batch.v, &ramp, rules);
     let chosen = (mask.iter().zip(room.values()))
         .map(|(&m, &r)| f64::from(u8::from(m && makes_room(r, rules.gate.b_safe))))
         .collect();

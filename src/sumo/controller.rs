@@ -341,6 +341,12 @@ impl Controller {
         let mut rules = rules;
         if let (Entry::Gap, Some(end)) = (config.scenario.entry, lane_end) {
             config.scenario.accel_lane = end - 0.5 * config.vehicle.length - config.scenario.conflict_point;
+            if let Some(from) = geometry.merge_from {
+                config.scenario.merge_zone = config
+                    .scenario
+                    .merge_zone
+                    .max(config.scenario.conflict_point - from);
+            }
             rules = WorldRules::new(&config);
         }
         if modes != ControlModes::EXACT {

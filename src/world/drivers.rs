@@ -1,9 +1,13 @@
 //! Non-learning drivers: IDM behind the leader a driver follows, and constant speed.
 
 use crate::config::Config;
+use crate::num::Num;
 use crate::world::geometry::Road;
 use crate::world::idm::{idm_accel, idm_v0};
+use crate::world::merge_gate::GateRules;
 use crate::world::neighbors::Neighbors;
+use crate::world::rules::WorldRules;
+use crate::world::safety::{Neighbor, feasible_interval_after};
 use crate::world::state::Scene;
 use crate::world::step::neighbor_of;
 
@@ -95,6 +99,46 @@ pub fn player_makes_room_for(road: &Road, scene: &Scene, i: usize) -> Option<usi
         .map(|(j, _)| j)
 }
 
+/// The largest action (m/s^2) of a player at `(x, v)` that makes room for ramp vehicle `ramp`
+/// (`sim.players_make_room`): the projection's bound behind it (TTC and time gap, as behind a
+/// leader) and, under the entry rule, [`secure_gap_bound`] too, so that the room it makes is
+/// a gap the entry rule lets the ramp vehicle into. With the projection's bound alone a player
+/// at 27 m/s behind one at 25 m/s may keep 33 m (beyond the clearance) where the entry asks 40 m.
+pub fn make_room_bound<T: Num>(x: &T, v: &T, ramp: &Neighbor<T>, rules: &WorldRules) -> T {
+    let absent = Neighbor {
+        x: x.full(0.0),
+        v: v.full(0.0),
+        present: x.full(0.0),
+    };
+    let (_, room) = feasible_interval_after(x, v, ramp, &ramp.v, &absent, &rules.projection());
+    match rules.gate.reaction_time {
+        Some(t_r) => room.min(&secure_gap_bound(x, v, &ramp.x, &ramp.v, t_r, &rules.gate)),
+        None => room,
+    }
+}
+
+/// The largest action (m/s^2) of a target-lane vehicle at `(x, v)` after which, one step on,
+/// it is still a human driver's secure gap ([`crate::world::merge_gate::secure_gap`], reaction
+/// time `t_r`, braking `rules.b_safe`) behind a vehicle at `(x_r, v_r)` keeping its speed:
+/// the gap the entry rule asks of a new follower. Positions after this step do not depend on
+/// the action (eq. 1), so with `D` the bumper gap (less `rules.clearance`) after two steps of
+/// the ramp vehicle and one of the follower, the next speed `v'` must satisfy
+/// `D - v' dt >= v' t_r + (v'^2 - v_r^2) / (2 b)`, that is
+/// `v' <= -b k + sqrt((b k)^2 + 2 b D + v_r^2)` with `k = t_r + dt`. A gap too short for any
+/// speed (root argument below 1) gives a bound below `-b k`, which no driver that brakes at
+/// most `b_safe` meets ([`makes_room`] then declines).
+pub fn secure_gap_bound<T: Num>(x: &T, v: &T, x_r: &T, v_r: &T, t_r: f64, rules: &GateRules) -> T {
+    let (b, dt) = (rules.b_safe, rules.dt);
+    let k = t_r + dt;
+    let gap = x_r
+        .add(&v_r.mul_c(2.0 * dt))
+        .sub(&x.add(&v.mul_c(dt)))
+        .add_c(-rules.clearance);
+    let root = gap.mul_c(2.0 * b).add(&v_r.square()).add_c((b * k) * (b * k));
+    let v_next = root.max(&root.full(1.0)).sqrt().add_c(-b * k);
+    v_next.sub(v).mul_c(1.0 / dt)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -183,6 +227,38 @@ mod tests {
         assert_eq!(player_makes_room_for(&road, &human, 2), None);
         config.sim.players_make_room = false;
         assert_eq!(act(&config, &scene, 2), 0.0);
+    }
+
+    #[test]
+    fn a_player_makes_the_room_the_entry_rule_asks_of_a_new_follower() {
+        // configs/traffic.toml: clearance 7 m, dt 0.1 s, reaction time 1 s, b_safe 4. Player P
+        // at 0 m, 27 m/s, behind ramp vehicle R at 50 m, 25 m/s: after two steps of R and one
+        // of P the gap is 50 + 5 - 2.7 - 7 = 45.3 m, so v' <= -4.4 + sqrt(4.4^2 + 8 * 45.3 +
+        // 25^2) = 27.329482 and a <= 3.294816.
+        use crate::world::rules::WorldRules;
+        let rules = WorldRules::new(&traffic_config());
+        let gate = &rules.gate;
+        let bound = secure_gap_bound(&0.0, &27.0, &50.0, &25.0, 1.0, gate);
+        assert!((bound - 3.294_816).abs() < 1e-6, "{bound}");
+        // Independently: at that action, the step after next leaves exactly the secure gap.
+        let v_next = 27.0 + bound * gate.dt;
+        let gap = (50.0 + 2.0 * 25.0 * gate.dt) - (27.0 * gate.dt + v_next * gate.dt) - gate.clearance;
+        let secure = crate::world::merge_gate::secure_gap(v_next, 25.0, 1.0, gate.b_safe);
+        assert!((gap - secure).abs() < 1e-9, "{gap} {secure}");
+        // The projection's bound (TTC 3 s, 1 s time gap) is far looser here, (25 + 42.8 / 3)
+        // * 0.75 = 29.45 m/s, a <= 24.5: the bound kept is the entry's. 10 m closer, P cannot
+        // make room within b_safe (a <= -9.57).
+        let ramp = Neighbor {
+            x: 50.0,
+            v: 25.0,
+            present: 1.0,
+        };
+        assert_eq!(make_room_bound(&0.0, &27.0, &ramp, &rules), bound);
+        let close = Neighbor { x: 40.0, ..ramp };
+        assert!(!makes_room(
+            make_room_bound(&0.0, &27.0, &close, &rules),
+            gate.b_safe
+        ));
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! gate, limits), eq. (1) with zero steering, and collisions between bounding boxes. One set of
 //! rules for the scalar rollout, the NGSIM replay and the SUMO co-simulation.
 
-use crate::world::drivers::{makes_room, player_makes_room_for};
+use crate::world::drivers::{make_room_bound, makes_room, player_makes_room_for};
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
@@ -103,14 +103,7 @@ pub fn applied_action_with(
         if rules.players_make_room {
             if let Some(j) = player_makes_room_for(&rules.road, scene, i) {
                 let ramp = neighbor_of(scene, Some(j), me);
-                let (_, room) = feasible_interval_after(
-                    &me.x,
-                    &me.v,
-                    &ramp,
-                    &ramp.v,
-                    &neighbor_of(scene, None, me),
-                    &rules.projection(),
-                );
+                let room = make_room_bound(&me.x, &me.v, &ramp, rules);
                 if makes_room(room, rules.gate.b_safe) {
                     a = a.min(room);
                 }

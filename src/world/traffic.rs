@@ -293,8 +293,10 @@ mod tests {
                 assert!(closing <= h / config.sampling.min_ttc + 1e-9, "TTC below min");
             }
         }
-        // Some egos start behind another ramp vehicle, and humans are mixed in.
-        assert!(ramp_leaders > 40, "{ramp_leaders}");
+        // Some egos start behind another ramp vehicle (26 of 200 with desired speeds up to 36
+        // m/s: on a fast road a ramp vehicle ahead must still stop before the ramp's end, so
+        // fewer fit), and humans are mixed in.
+        assert!(ramp_leaders > 20, "{ramp_leaders}");
         assert!(human_count > 100, "{human_count}");
     }
 
