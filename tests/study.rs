@@ -247,3 +247,55 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
         assert!(!bad.exists());
     }
 }
+
+#[cfg(feature = "sumo")]
+#[test]
+fn the_capacity_sweep_finds_where_a_one_lane_merge_stops_taking_more_vehicles() {
+    use common::bin;
+    let dir = fresh_dir("study-capacity");
+    let net = dir.join("net");
+    let out = bin()
+        .args(["net", "build", "--form", "acceleration", "--accel-lane", "150"])
+        .args(["--speed", "30", "--lane-flow", "900", "--ramp-flow", "400"])
+        .args(["--duration", "120", "--out"])
+        .arg(&net)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let study = dir.join("study");
+    let out = bin()
+        .args(["study", "--capacity", "0.5,1,5", "--shares", "0", "--seeds", "0"])
+        .args(["--end", "120", "--sumocfg"])
+        .arg(net.join("merge.sumocfg"))
+        .arg("--out")
+        .arg(&study)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let md = std::fs::read_to_string(study.join("study.md")).unwrap();
+    // About 1,100 veh/h at demand 1 pass; 6,750 veh/h at demand 5 are far beyond what one freeway
+    // lane and a ramp take (SUMO's drivers: about 2,000 veh/h a lane), so most of that step's
+    // extra vehicles wait to enter: broken down at 5, and the study runs at 1.2 x 5.
+    assert!(md.contains("The merge breaks down at demand 5 "), "{md}");
+    assert!(md.contains("The game by share, at demand 6"), "{md}");
+    assert!(study.join("capacity/demand_0.5/routes").is_dir());
+    // A single demand cannot show a breakdown; a repeated one is refused too.
+    for (capacity, message) in [
+        ("1", "--capacity needs at least two demands"),
+        ("1,2,1", "--capacity: demand 1 is given twice"),
+        ("1,-2", "--capacity -2: must be a positive number"),
+    ] {
+        let bad = dir.join("bad");
+        let out = bin()
+            .args(["study", "--capacity", capacity, "--sumocfg"])
+            .arg(net.join("merge.sumocfg"))
+            .arg("--out")
+            .arg(&bad)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(message), "{err}");
+        assert!(!bad.exists());
+    }
+}

@@ -8,8 +8,9 @@ use crate::cli::common::{PolicyPair, SeedChoice, deployed_policy, print, usage};
 use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
+use mpgdrive::batch::capacity::{self, SweepRun};
 use mpgdrive::batch::penetration::{self, Conflicts, StudyRun, Trips};
-use mpgdrive::batch::routes::{DemandSpec, generate};
+use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, generate};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, Combo, run_batch};
 use mpgdrive::config::Config;
 use mpgdrive::policy::Mode;
@@ -41,9 +42,15 @@ pub struct StudyArgs {
     /// comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "0,0.1,0.3,0.5,1")]
     shares: Vec<f64>,
-    /// Demand: a multiple of the base route file's flows.
-    #[arg(long, default_value_t = 1.2)]
-    demand: f64,
+    /// Demand: a multiple of the base route file's flows (default 1.2; with --capacity, 1.2
+    /// times the demand at which the merge breaks down, when it does).
+    #[arg(long)]
+    demand: Option<f64>,
+    /// Before the study, the merge's capacity: SUMO's drivers alone at these demands
+    /// (multiples of the base route file, comma-separated), the outflow against the inflow and
+    /// the demand at which the merge breaks down (capacity/ in --out, a table in study.md).
+    #[arg(long, value_delimiter = ',')]
+    capacity: Vec<f64>,
     /// Seeds, comma-separated: each gives its own arrivals and SUMO's random seed.
     #[arg(long, value_delimiter = ',', default_value = "0,1,2")]
     seeds: Vec<u64>,
@@ -64,6 +71,13 @@ pub struct StudyArgs {
 
 /// The controllers of every run: the game, and SUMO's drivers alone.
 const CONTROLLERS: [&str; 2] = ["mpg", "sumo"];
+
+/// The study's demand without --demand (a multiple of the base route file).
+const DEFAULT_DEMAND: f64 = 1.2;
+
+/// With --capacity and without --demand, the study runs at this multiple of the demand at
+/// which the merge breaks down (issue 59: the outflow each controller keeps beyond it).
+const STUDY_OVER_BREAKDOWN: f64 = 1.2;
 
 /// Runs `mpgdrive study`.
 pub fn run(args: StudyArgs) -> Result<ExitCode> {
@@ -106,11 +120,14 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
     let flag = stop.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
         .context("installing the Ctrl-C handler")?;
-    let mut runs = Vec::new();
-    for &share in &args.shares {
-        let dir = args.out.join(share_folder(share));
+    // Every batch of runs of one demand and share: the route files, then the runs.
+    let batch = |dir: &Path,
+                 demand: f64,
+                 share: f64,
+                 controllers: &[&str]|
+     -> Result<Option<Vec<(ManifestEntry, Combo)>>> {
         let spec = DemandSpec {
-            scales: vec![args.demand],
+            scales: vec![demand],
             ramp_share: None,
             controllable_shares: vec![share],
             mainline_share: Some(share),
@@ -121,41 +138,80 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
         let mut todo = Vec::new();
         for m in &manifest {
             let route = absolute(&dir.join("routes").join(&m.file))?;
-            todo.extend(CONTROLLERS.map(|c| Combo {
-                route: route.clone(),
-                controller: c.into(),
-                seed: m.seed,
+            todo.extend(controllers.iter().map(|&c| {
+                let combo = Combo {
+                    route: route.clone(),
+                    controller: c.into(),
+                    seed: m.seed,
+                };
+                (m.clone(), combo)
             }));
         }
         eprintln!(
-            "study: controllable share {:.0}%: {} runs",
+            "study: demand {demand}, controllable share {:.0}%: {} runs",
             share * 100.0,
             todo.len()
         );
-        match run_batch(&settings(dir.clone())?, &todo, &stop, &mut |_| {})? {
+        let combos: Vec<Combo> = todo.iter().map(|(_, c)| c.clone()).collect();
+        match run_batch(&settings(dir.to_path_buf())?, &combos, &stop, &mut |_| {})? {
             BatchEnd::Stopped => {
                 eprintln!(
                     "study stopped: finished runs are in {}; rerun with --resume",
                     args.out.display()
                 );
-                return Ok(ExitCode::from(130));
+                Ok(None)
             }
-            BatchEnd::Done { failed: 0 } => {}
-            BatchEnd::Done { failed } => {
-                return Err(usage(format!(
-                    "{failed} runs failed: see {}",
-                    dir.join("summary.md").display()
-                )));
+            BatchEnd::Done { failed: 0 } => Ok(Some(todo)),
+            BatchEnd::Done { failed } => Err(usage(format!(
+                "{failed} runs failed: see {}",
+                dir.join("summary.md").display()
+            ))),
+        }
+    };
+    let read = |dir: &Path, share: f64, combo: &Combo| {
+        read_run(
+            &dir.join("work").join(combo.key()),
+            combo,
+            share,
+            args.end,
+            &controllable,
+        )
+    };
+    let mut capacity_md = String::new();
+    let mut demand = args.demand.unwrap_or(DEFAULT_DEMAND);
+    if !args.capacity.is_empty() {
+        let mut sweep = Vec::new();
+        for &d in &args.capacity {
+            let dir = args.out.join("capacity").join(format!("demand_{d}"));
+            let Some(done) = batch(&dir, d, 0.0, &["sumo"])? else {
+                return Ok(ExitCode::from(130));
+            };
+            for (m, combo) in &done {
+                sweep.push(SweepRun {
+                    demand: d,
+                    scheduled: m.vehicles,
+                    run: read(&dir, 0.0, combo)?,
+                });
             }
         }
-        for combo in &todo {
-            runs.push(read_run(
-                &dir.join("work").join(combo.key()),
-                combo,
-                share,
-                args.end,
-                &controllable,
-            )?);
+        let points = capacity::points(&sweep);
+        let found = capacity::capacity(&points);
+        if let (None, Some(breakdown)) = (args.demand, found.breakdown) {
+            demand = STUDY_OVER_BREAKDOWN * breakdown;
+        }
+        capacity_md = format!(
+            "## The merge's capacity: SUMO's drivers alone\n\n{}\n## The game by share, at demand {demand}\n\n",
+            capacity::markdown(&points, &found)
+        );
+    }
+    let mut runs = Vec::new();
+    for &share in &args.shares {
+        let dir = args.out.join(share_folder(share));
+        let Some(done) = batch(&dir, demand, share, &CONTROLLERS)? else {
+            return Ok(ExitCode::from(130));
+        };
+        for (_, combo) in &done {
+            runs.push(read(&dir, share, combo)?);
         }
     }
     let rows = penetration::rows(&runs);
@@ -165,7 +221,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
          the controllable vehicles play the game (mpg policy), the others are SUMO's drivers. \
          Mean ± sample standard deviation over seeds.\n\n",
         args.sumocfg.display(),
-        args.demand,
+        demand,
         args.seeds
             .iter()
             .map(u64::to_string)
@@ -173,7 +229,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             .join(", "),
         args.end
     );
-    let md = title + &penetration::markdown(&rows);
+    let md = title + &capacity_md + &penetration::markdown(&rows);
     atomic::write(&args.out.join("study.md"), &md).context("writing study.md")?;
     atomic::write(&args.out.join("study.csv"), penetration::csv(&rows)).context("writing study.csv")?;
     penetration::plot(&rows, &args.out.join("study.png"))?;
@@ -223,11 +279,20 @@ fn merge_toml(merges: &[MergeGeometry]) -> Result<String> {
 /// What a worker would refuse is refused here, before any run.
 fn check_inputs(args: &StudyArgs) -> Result<Config> {
     let config = check_run(&args.sumocfg, &args.config, args.end)?;
-    if !(args.demand.is_finite() && args.demand > 0.0) {
-        return Err(usage(format!(
-            "--demand {}: must be a positive number",
-            args.demand
-        )));
+    for (flag, d) in
+        (args.demand.iter().map(|d| ("--demand", d))).chain(args.capacity.iter().map(|d| ("--capacity", d)))
+    {
+        if !(d.is_finite() && *d > 0.0) {
+            return Err(usage(format!("{flag} {d}: must be a positive number")));
+        }
+    }
+    if let Some((k, d)) = (args.capacity.iter().enumerate()).find(|(k, d)| args.capacity[..*k].contains(d)) {
+        return Err(usage(format!("--capacity: demand {d} is given twice (at {k})")));
+    }
+    if args.capacity.len() == 1 {
+        return Err(usage(
+            "--capacity needs at least two demands (a breakdown is a rise that stops)",
+        ));
     }
     if let Some(s) = args.shares.iter().find(|s| !(0.0..=1.0).contains(*s)) {
         return Err(usage(format!("--shares: {s} is not a share between 0 and 1")));
