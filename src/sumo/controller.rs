@@ -341,6 +341,8 @@ impl Controller {
         let mut rules = rules;
         if let (Entry::Gap, Some(end)) = (config.scenario.entry, lane_end) {
             config.scenario.accel_lane = end - 0.5 * config.vehicle.length - config.scenario.conflict_point;
+            // The merge zone, where players make room for a ramp vehicle, starts where the
+            // egos may enter (`merge_from`), as the training's starts where its ramp vehicles may.
             if let Some(from) = geometry.merge_from {
                 config.scenario.merge_zone = config
                     .scenario
