@@ -174,8 +174,8 @@ def study(folder):
 
 
 def study_rows():
-    """The summary's lines from docs/results/study.md: the time-loss ratio by share, and the
-    share from which the game beats SUMO's drivers."""
+    """The summary's lines from docs/results/study.md: the time-loss ratio by share, the share
+    from which the game beats SUMO's drivers, and the merge's capacity when the study swept it."""
     path = os.path.join(RESULTS, "study.md")
     if not os.path.isfile(path):
         return []
@@ -188,12 +188,14 @@ def study_rows():
     setting = (f"{os.path.basename(os.path.dirname(net.group(1)))}, demand {net.group(2)}, "
                f"seeds {seeds.group(1)}, {seeds.group(2)} s" if net and seeds else "?")
     verdict = re.search(r"^(The game .*)$", text, re.M)
+    capacity = re.search(r"^(The merge (breaks|does not break) .*)$", text, re.M)
     return [
         f"| Penetration study ({setting}): time loss of every vehicle, the game / SUMO's drivers "
         f"alone, at {' / '.join(r[0] for r in ratios)} controllable vehicles "
         f"| {' / '.join(r[1] for r in ratios)} | `study.md` |",
         f"| {verdict.group(1) if verdict else '?'} | | `study.md` |",
-    ]
+    ] + ([f"| Capacity of the merge, SUMO's drivers alone ({setting.split(', demand')[0]}): "
+          f"{capacity.group(1)} | | `study.md` |"] if capacity else [])
 
 
 def deployments(kind):
