@@ -111,54 +111,59 @@ fn the_game_beats_its_drivers_from_the_share_on_which_it_stays_below() {
     assert_eq!(break_even(&rows(&study([10.0, 9.0, 9.0, 10.5]))), None);
 }
 
+/// A one-lane 30 m/s freeway with a 150 m acceleration lane, 900 + 400 veh/h for 120 s, built
+/// with `net build` in `dir/net`; its .sumocfg.
+#[cfg(feature = "sumo")]
+fn merge_net(dir: &std::path::Path) -> std::path::PathBuf {
+    let net = dir.join("net");
+    let out = common::bin()
+        .args(["net", "build", "--form", "acceleration", "--accel-lane", "150"])
+        .args(["--speed", "30", "--lane-flow", "900", "--ramp-flow", "400"])
+        .args(["--duration", "120", "--out"])
+        .arg(&net)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    net.join("merge.sumocfg")
+}
+
+/// `mpgdrive study ARGS --sumocfg SUMOCFG --out OUT`.
+#[cfg(feature = "sumo")]
+fn study_run(args: &[&str], sumocfg: &std::path::Path, out: &std::path::Path) -> std::process::Output {
+    common::bin()
+        .arg("study")
+        .args(args)
+        .arg("--sumocfg")
+        .arg(sumocfg)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+/// `study FLAG VALUE` on `sumocfg` is refused with exit code 2 and `message`, before anything
+/// is written to `out`.
+#[cfg(feature = "sumo")]
+fn refused(flag: &str, value: &str, sumocfg: &std::path::Path, out: &std::path::Path, message: &str) {
+    let run = study_run(&[flag, value], sumocfg, out);
+    assert_eq!(run.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains(message), "{err}");
+    assert!(!out.exists());
+}
+
 #[cfg(feature = "sumo")]
 #[test]
 fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() {
     use common::bin;
     let dir = fresh_dir("study-sumo");
-    let net = dir.join("net");
-    let out = bin()
-        .args([
-            "net",
-            "build",
-            "--form",
-            "acceleration",
-            "--accel-lane",
-            "150",
-            "--speed",
-            "30",
-        ])
-        .args([
-            "--lane-flow",
-            "900",
-            "--ramp-flow",
-            "400",
-            "--duration",
-            "120",
-            "--out",
-        ])
-        .arg(&net)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let sumocfg = net.join("merge.sumocfg");
+    let sumocfg = merge_net(&dir);
     let study = dir.join("study");
-    let out = bin()
-        .args([
-            "study",
-            "--shares",
-            "0,1",
-            "--seeds",
-            "0",
-            "--end",
-            "120",
-            "--sumocfg",
-        ])
-        .arg(&sumocfg)
-        .arg("--out")
-        .arg(&study)
-        .output()
-        .unwrap();
+    let out = study_run(
+        &["--shares", "0,1", "--seeds", "0", "--end", "120"],
+        &sumocfg,
+        &study,
+    );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let csv = std::fs::read_to_string(study.join("study.csv")).unwrap();
     let value = |share: &str, quantity: &str, side: &str| -> f64 {
@@ -226,7 +231,6 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
     assert_eq!(driven, game(&all));
     // A share outside [0, 1], or two shares within 0.05% (one folder), is refused before
     // anything runs.
-    let bad = dir.join("bad");
     for (shares, message) in [
         ("0,1.5", "--shares: 1.5"),
         (
@@ -234,43 +238,27 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
             "--shares: 0.3 and 0.3004 would share the folder share_030.0",
         ),
     ] {
-        let out = bin()
-            .args(["study", "--shares", shares, "--sumocfg"])
-            .arg(&sumocfg)
-            .arg("--out")
-            .arg(&bad)
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2));
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains(message), "{err}");
-        assert!(!bad.exists());
+        refused("--shares", shares, &sumocfg, &dir.join("bad"), message);
     }
 }
 
 #[cfg(feature = "sumo")]
 #[test]
 fn the_capacity_sweep_finds_where_a_one_lane_merge_stops_taking_more_vehicles() {
-    use common::bin;
     let dir = fresh_dir("study-capacity");
-    let net = dir.join("net");
-    let out = bin()
-        .args(["net", "build", "--form", "acceleration", "--accel-lane", "150"])
-        .args(["--speed", "30", "--lane-flow", "900", "--ramp-flow", "400"])
-        .args(["--duration", "120", "--out"])
-        .arg(&net)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let sumocfg = merge_net(&dir);
     let study = dir.join("study");
-    let out = bin()
-        .args(["study", "--capacity", "0.5,1,5", "--shares", "0", "--seeds", "0"])
-        .args(["--end", "120", "--sumocfg"])
-        .arg(net.join("merge.sumocfg"))
-        .arg("--out")
-        .arg(&study)
-        .output()
-        .unwrap();
+    let args = [
+        "--capacity",
+        "0.5,1,5",
+        "--shares",
+        "0",
+        "--seeds",
+        "0",
+        "--end",
+        "120",
+    ];
+    let out = study_run(&args, &sumocfg, &study);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let md = std::fs::read_to_string(study.join("study.md")).unwrap();
     // About 1,100 veh/h at demand 1 pass; 6,750 veh/h at demand 5 are far beyond what one freeway
@@ -285,17 +273,6 @@ fn the_capacity_sweep_finds_where_a_one_lane_merge_stops_taking_more_vehicles() 
         ("1,2,1", "--capacity: demand 1 is given twice"),
         ("1,-2", "--capacity -2: must be a positive number"),
     ] {
-        let bad = dir.join("bad");
-        let out = bin()
-            .args(["study", "--capacity", capacity, "--sumocfg"])
-            .arg(net.join("merge.sumocfg"))
-            .arg("--out")
-            .arg(&bad)
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2));
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains(message), "{err}");
-        assert!(!bad.exists());
+        refused("--capacity", capacity, &sumocfg, &dir.join("bad"), message);
     }
 }
