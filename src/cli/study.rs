@@ -197,7 +197,8 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
         let points = capacity::points(&sweep);
         let found = capacity::capacity(&points);
         if let (None, Some(breakdown)) = (args.demand, found.breakdown) {
-            demand = STUDY_OVER_BREAKDOWN * breakdown;
+            // Rounded to 1e-6 (1.2 x 3.3 is 3.9599999999999995 in f64).
+            demand = (STUDY_OVER_BREAKDOWN * breakdown * 1e6).round() / 1e6;
         }
         capacity_md = format!(
             "## The merge's capacity: SUMO's drivers alone\n\n{}\n## The game by share, at demand {demand}\n\n",
