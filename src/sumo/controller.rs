@@ -1608,6 +1608,45 @@ mod tests {
     }
 
     #[test]
+    fn players_make_room_from_where_the_egos_may_enter() {
+        // single_lane_merge: x_c 180 m, merge_from 110 m. Under the entry rule the merge zone
+        // (where players make room for a ramp vehicle) starts at merge_from, 70 m before x_c,
+        // not at the training's 40 m; a merge_from later than that keeps the 40 m.
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let config = Config::load(&root.join("configs/traffic.toml")).unwrap();
+        let net = root.join("sumo_nets/single_lane_merge");
+        let geometry = MergeGeometry::load(&net.join("merge.toml")).unwrap();
+        let positions = crate::sumo::inputs::check_geometry(
+            &geometry,
+            &net.join("merge.toml"),
+            &net.join("merge.net.xml"),
+        )
+        .unwrap();
+        let zone = |merge_from: f64| {
+            let geometry = MergeGeometry {
+                merge_from: Some(merge_from),
+                ..geometry.clone()
+            };
+            let kind = ControllerKind::Mpg;
+            let c = Controller::new(
+                config.clone(),
+                geometry,
+                positions.clone(),
+                kind,
+                None,
+                ControlModes::SAFE,
+            );
+            (
+                c.rules.road.in_merge_zone(109.0),
+                c.rules.road.in_merge_zone(110.0),
+                c.rules.road.in_merge_zone(140.0),
+            )
+        };
+        assert_eq!(zone(110.0), (false, true, true));
+        assert_eq!(zone(160.0), (false, false, true));
+    }
+
+    #[test]
     fn egos_merge_at_the_first_safe_gap_from_merge_from_and_at_x_c_at_the_latest() {
         let mut c = paper_controller();
         // Without merge_from: at x_c only, as the internal simulator.
