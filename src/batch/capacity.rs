@@ -11,7 +11,6 @@
 //! get through, they queue. The **capacity** is the largest mean outflow of the sweep.
 
 use crate::batch::penetration::{Quantity, Spread, StudyRun};
-use crate::batch::summary::mean_sd;
 
 /// The merge has broken down where less than this share of a demand step's extra inflow comes
 /// out as extra outflow.
@@ -50,15 +49,6 @@ pub struct Capacity {
     pub breakdown: Option<f64>,
 }
 
-fn spread(xs: &[f64]) -> Spread {
-    let (mean, sd) = mean_sd(xs);
-    Spread {
-        mean,
-        sd,
-        runs: xs.len(),
-    }
-}
-
 /// The sweep's demands in increasing order, each over its seeds.
 pub fn points(runs: &[SweepRun]) -> Vec<DemandPoint> {
     let mut demands: Vec<f64> = runs.iter().map(|r| r.demand).collect();
@@ -69,7 +59,7 @@ pub fn points(runs: &[SweepRun]) -> Vec<DemandPoint> {
         .map(|demand| {
             let at: Vec<&SweepRun> = runs.iter().filter(|r| r.demand == demand).collect();
             let of = |f: &dyn Fn(&SweepRun) -> Option<f64>| {
-                spread(&at.iter().filter_map(|r| f(r)).collect::<Vec<_>>())
+                Spread::of(&at.iter().filter_map(|r| f(r)).collect::<Vec<_>>())
             };
             DemandPoint {
                 demand,

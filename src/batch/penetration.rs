@@ -219,6 +219,18 @@ pub struct Spread {
     pub runs: usize,
 }
 
+impl Spread {
+    /// The mean and sample standard deviation of `xs`.
+    pub fn of(xs: &[f64]) -> Spread {
+        let (mean, sd) = mean_sd(xs);
+        Spread {
+            mean,
+            sd,
+            runs: xs.len(),
+        }
+    }
+}
+
 /// One share's line of the study: each quantity for the game and for SUMO's drivers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ShareRow {
@@ -264,17 +276,7 @@ pub fn rows(runs: &[StudyRun]) -> Vec<ShareRow> {
                             .filter(|r| r.game == game)
                             .filter_map(|r| q.of(r))
                             .collect();
-                        (!xs.is_empty()).then(|| {
-                            let (mean, sd) = mean_sd(&xs);
-                            (
-                                q,
-                                Spread {
-                                    mean,
-                                    sd,
-                                    runs: xs.len(),
-                                },
-                            )
-                        })
+                        (!xs.is_empty()).then(|| (q, Spread::of(&xs)))
                     })
                     .collect()
             };
