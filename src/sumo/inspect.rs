@@ -8,8 +8,15 @@
 //!   lane there (its link is minor where the other's is major; with equal links, a zipper or a
 //!   lane drop into one lane, the lane of the lower-priority edge, then of the edge with fewer
 //!   lanes, then the right one). That is the paper's forced merge: the ramp lane ends at the
-//!   conflict point. A lane that turns onto several roads, or whose link has a traffic light,
-//!   approaches an intersection and is not a merge.
+//!   conflict point. A lane that turns onto several roads approaches an intersection and is not
+//!   a merge. Behind a traffic light (ramp metering, or a signal where two roads join) it is a
+//!   merge when both roads lead only into the one they join ([`find_signalised_merges`]), and
+//!   an intersection's approach otherwise; `cosim` does not drive signalised merges: the
+//!   policies never met a signal, and an ego beside a platoon held at its red light waits for
+//!   it as for a jam (measured on a ramp-metered merge built with netconvert, `--tls.set`).
+//!
+//! Only lanes that passenger cars may use count (SUMO's `allow` and `disallow`): a sidewalk
+//! that ends at every junction, or a bicycle lane beside a ramp, is no acceleration lane.
 //!
 //! The ramp lanes are the last ramp lane and the lanes leading into it, followed back through
 //! the connections; the target lanes are the target lane and the lanes it continues from and
@@ -60,10 +67,17 @@ const CHAIN: usize = 12;
 /// The merges of the network in `net`: acceleration lanes in the order of their ids, then
 /// junction merges in the order of their ramp lanes' ids.
 pub fn find_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
-    with_network(net, merges_of)
+    with_network(net, |doc| merges_of(doc).0)
 }
 
-fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
+/// The junction merges of the network in `net` behind a traffic light, which `cosim` does not
+/// drive (module docs).
+pub fn find_signalised_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
+    with_network(net, |doc| merges_of(doc).1)
+}
+
+/// The merges of a network, and the junction merges behind a traffic light apart.
+fn merges_of(doc: &roxmltree::Document) -> (Vec<Merge>, Vec<Merge>) {
     let mut lanes: BTreeMap<String, Lane> = BTreeMap::new();
     for edge in doc.root_element().children().filter(|n| n.has_tag_name("edge")) {
         let Some(id) = edge.attribute("id").filter(|id| !id.starts_with(':')) else {
@@ -74,7 +88,7 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
             .and_then(|p| p.parse().ok())
             .unwrap_or(0);
         let edge_lanes: Vec<_> = edge.children().filter(|n| n.has_tag_name("lane")).collect();
-        for lane in &edge_lanes {
+        for lane in edge_lanes.iter().filter(|lane| admits_cars(lane)) {
             let (Some(lane_id), Some(index)) = (
                 lane.attribute("id"),
                 lane.attribute("index").and_then(|i| i.parse().ok()),
@@ -117,7 +131,7 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         }
         out
     };
-    let mut merges = Vec::new();
+    let (mut merges, mut signalised) = (Vec::new(), Vec::new());
     // Acceleration lanes: a lane that ends beside a lane of its edge that goes on.
     for (id, lane) in &lanes {
         let left = format!("{}_{}", lane.edge, lane.index + 1);
@@ -135,11 +149,9 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         let Some(first) = out.iter().min_by_key(|l| lanes[&l.to].index) else {
             continue;
         };
-        if out
-            .iter()
-            .any(|l| l.signalised || lanes[&l.to].edge != lanes[&first.to].edge)
-        {
-            continue; // an intersection's approach: it turns onto several roads, or has a signal
+        let joined = &lanes[&first.to].edge;
+        if out.iter().any(|l| lanes[&l.to].edge != *joined) {
+            continue; // an intersection's approach: it turns onto several roads
         }
         let target = &first.to;
         let rank = |l: &Link| {
@@ -156,11 +168,41 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         if rank(first) >= rank(feeder) {
             continue; // it does not yield there: the feeder is the ramp, if either is
         }
+        // Behind a signal, a road that also turns elsewhere makes the junction an intersection.
+        let only_into_joined = |lane: &str| {
+            let edge = &lanes[lane].edge;
+            links
+                .iter()
+                .filter(|l| lanes[&l.from].edge == *edge)
+                .all(|l| lanes[&l.to].edge == *joined)
+        };
+        let behind_signal = first.signalised || feeder.signalised;
+        if behind_signal && !(only_into_joined(id) && only_into_joined(&feeder.from)) {
+            continue;
+        }
         let mut target_lanes = chain(&feeder.from, false);
         target_lanes.extend(chain(target, true));
-        merges.extend(placed(doc, chain(id, false), target_lanes, target));
+        let found = placed(doc, chain(id, false), target_lanes, target);
+        match behind_signal {
+            true => signalised.extend(found),
+            false => merges.extend(found),
+        }
     }
-    merges
+    (merges, signalised)
+}
+
+/// Whether passenger cars may use a lane (SUMO's `allow` and `disallow` lists of vehicle
+/// classes; neither: every class).
+fn admits_cars(lane: &roxmltree::Node) -> bool {
+    let lists = |key: &str| {
+        lane.attribute(key)
+            .map(|v| v.split_whitespace().any(|c| c == "passenger" || c == "all"))
+    };
+    match (lists("allow"), lists("disallow")) {
+        (Some(allowed), _) => allowed,
+        (None, Some(disallowed)) => !disallowed,
+        (None, None) => true,
+    }
 }
 
 /// How much right of way a link state gives: major, then zipper or equal, then the rest (minor,
@@ -411,7 +453,11 @@ mod tests {
     }
 
     fn merges(text: &str) -> Vec<Merge> {
-        merges_of(&roxmltree::Document::parse(text).unwrap())
+        merges_of(&roxmltree::Document::parse(text).unwrap()).0
+    }
+
+    fn signalised(text: &str) -> Vec<Merge> {
+        merges_of(&roxmltree::Document::parse(text).unwrap()).1
     }
 
     #[test]
@@ -439,7 +485,44 @@ mod tests {
         );
         // Two major links: neither yields, no merge.
         assert!(merges(&net("M", "M", "").replace("priority=\"1\"", "priority=\"3\"")).is_empty());
-        // A signal at the junction: an intersection, not a merge.
-        assert!(merges(&net("M", "m", " tl=\"j\"")).is_empty());
+    }
+
+    #[test]
+    fn behind_a_signal_two_roads_into_one_merge_and_an_intersection_does_not() {
+        // Ramp metering: a signal on the ramp's links, both roads lead only into `o`: a merge,
+        // found apart from the ones `cosim` drives.
+        assert!(merges(&net("O", "o", " tl=\"j\"")).is_empty());
+        let metered = signalised(&net("O", "o", " tl=\"j\""));
+        assert_eq!(metered.len(), 1);
+        assert_eq!(metered[0].ramp_lanes, ["r_0"]);
+        assert_eq!((metered[0].lane_start, metered[0].lane_end), (58.0, 98.0));
+        // The freeway also turns onto another road `t` there: an intersection's approach.
+        let turn = r#"<edge id="t" priority="1"><lane id="t_0" index="0" length="50.00"/></edge>
+            <connection from="a" to="t" fromLane="0" toLane="0" state="O" tl="j"/>
+            </net>"#;
+        assert!(signalised(&net("O", "o", " tl=\"j\"").replace("</net>", turn)).is_empty());
+        // Without the signal the same ramp still yields into `o`: a merge.
+        assert_eq!(merges(&net("M", "m", "").replace("</net>", turn)).len(), 1);
+    }
+
+    #[test]
+    fn lanes_closed_to_cars_are_neither_ramps_nor_targets() {
+        // A sidewalk `w_0` beside the freeway lane `w_1` ends where the lane goes on: with
+        // cars allowed it would be an acceleration lane; a bicycle lane neither.
+        let walk = |allow: &str| {
+            format!(
+                r#"<net>
+            <edge id="w" priority="3"><lane id="w_0" index="0" {allow} length="80.00"/><lane id="w_1" index="1" length="80.00"/></edge>
+            <edge id="n" priority="3"><lane id="n_0" index="0" length="80.00"/></edge>
+            <connection from="w" to="n" fromLane="1" toLane="0" state="M"/>
+            </net>"#
+            )
+        };
+        assert_eq!(merges(&walk("")).len(), 1);
+        assert_eq!(merges(&walk(r#"allow="passenger truck""#)).len(), 1);
+        assert!(merges(&walk(r#"allow="pedestrian""#)).is_empty());
+        assert!(merges(&walk(r#"allow="bicycle""#)).is_empty());
+        assert!(merges(&walk(r#"disallow="all""#)).is_empty());
+        assert_eq!(merges(&walk(r#"disallow="pedestrian bicycle""#)).len(), 1);
     }
 }

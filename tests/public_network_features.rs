@@ -1,0 +1,113 @@
+//! What public networks hold that `mpgdrive net build`'s do not, built here with netconvert:
+//! sidewalks and bicycle lanes beside every road (city networks, `--sidewalks.guess`,
+//! `--bikelanes.guess`), and a signal where the ramp joins (ramp metering, `--tls.set`). A lane
+//! closed to cars is neither a ramp nor a target lane, the merge `net inspect` proposes drives
+//! in `cosim`, and a signalised merge is refused with a message that says why.
+#![cfg(feature = "sumo")]
+
+mod common;
+
+use common::{bin, controlled_collisions, fresh_dir};
+use std::path::Path;
+use std::process::Command;
+
+/// A two-lane road at 13.9 m/s joined by a one-lane ramp at a junction `M`, built with
+/// netconvert and `options` into `dir/net.net.xml`, with a sumocfg and 300 s of flows (1,200
+/// veh/h on the road, 400 on the ramp of type `ctrl`).
+fn build(dir: &Path, options: &[&str]) {
+    std::fs::write(
+        dir.join("m.nod.xml"),
+        r#"<nodes><node id="A" x="0" y="0"/><node id="M" x="600" y="0"/><node id="B" x="1400" y="0"/><node id="R" x="200" y="-150"/></nodes>"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("m.edg.xml"),
+        r#"<edges><edge id="fw_in" from="A" to="M" numLanes="2" speed="13.9" priority="3"/>
+        <edge id="fw_out" from="M" to="B" numLanes="2" speed="13.9" priority="3"/>
+        <edge id="ramp" from="R" to="M" numLanes="1" speed="11.1" priority="1"/></edges>"#,
+    )
+    .unwrap();
+    let out = Command::new("netconvert")
+        .current_dir(dir)
+        .args(["-n", "m.nod.xml", "-e", "m.edg.xml", "-o", "net.net.xml"])
+        .args(options)
+        .output()
+        .expect("netconvert (SUMO's network builder) is installed with SUMO");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::write(
+        dir.join("m.rou.xml"),
+        r#"<routes><vType id="car" length="5" minGap="2" accel="2.6" decel="4.5" sigma="0.5"/>
+        <vType id="ctrl" length="5" minGap="2" accel="2.6" decel="4.5" sigma="0.5"/>
+        <flow id="f" type="car" from="fw_in" to="fw_out" begin="0" end="300" vehsPerHour="1200" departLane="best" departSpeed="max"/>
+        <flow id="r" type="ctrl" from="ramp" to="fw_out" begin="0" end="300" vehsPerHour="400" departSpeed="max"/></routes>"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("merge.sumocfg"),
+        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="m.rou.xml"/></input>
+        <time><step-length value="0.1"/></time></configuration>"#,
+    )
+    .unwrap();
+}
+
+/// `mpgdrive ARGS` run in `dir`.
+fn mpgdrive_in(dir: &Path, args: &[&str]) -> std::process::Output {
+    bin().current_dir(dir).args(args).output().unwrap()
+}
+
+#[test]
+fn sidewalks_and_bicycle_lanes_are_no_merges_and_the_car_lanes_merge_drives() {
+    let dir = fresh_dir("public-sidewalks");
+    build(&dir, &["--sidewalks.guess", "--bikelanes.guess"]);
+    let out = mpgdrive_in(&dir, &["net", "inspect", "net.net.xml", "--out", "merge.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let toml = std::fs::read_to_string(dir.join("merge.toml")).unwrap();
+    // The ramp's lane 0 is a sidewalk and lane 1 a bicycle lane, the road's lane 0 a bicycle
+    // lane (netconvert guesses no sidewalk at 13.9 m/s): one merge, of the ramp's car lane
+    // into the road's right car lane. The proposal's vehicle type is the routes' `ctrl`.
+    // (Several merges would be `[[merge]]` tables; one is written in the single form.)
+    assert!(!toml.contains("[[merge]]"), "{toml}");
+    assert!(toml.contains(r#"ramp_lanes = ["ramp_2"]"#), "{toml}");
+    assert!(
+        toml.contains(r#"target_lanes = ["fw_in_1", "fw_out_1"]"#),
+        "{toml}"
+    );
+    let out = bin()
+        .current_dir(&dir)
+        .args([
+            "cosim",
+            "--sumocfg",
+            "merge.sumocfg",
+            "--end",
+            "200",
+            "--controllers",
+            "mpg",
+        ])
+        .args(["--no-diagrams", "--json", "--out", "results"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let runs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let run = &runs[0];
+    let finished = run["egos"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["finished"] == true)
+        .count();
+    assert!(finished >= 10, "{finished} egos finished");
+    assert_eq!(controlled_collisions(run), 0);
+}
+
+#[test]
+fn a_signalised_merge_is_refused_with_its_reason() {
+    let dir = fresh_dir("public-signal");
+    build(&dir, &["--tls.set", "M"]);
+    let out = mpgdrive_in(&dir, &["net", "inspect", "net.net.xml"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("1 merge(s) behind a traffic light (into fw_out_0)") && err.lines().count() == 1,
+        "{err}"
+    );
+}
