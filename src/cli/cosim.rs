@@ -170,9 +170,9 @@ mod with_sumo {
             .clone()
             .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
         let geometries = MergeGeometry::load_all(&merge)?;
-        let (positions, ssm_equipped) =
+        let (positions, facts) =
             mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometries, &merge)?;
-        if !ssm_equipped {
+        if !facts.ssm {
             eprintln!(
                 "cosim: {} equips no vehicle with the SSM device: every vehicle gets one (the conflict metrics need it)",
                 args.sumocfg.display()
@@ -185,6 +185,7 @@ mod with_sumo {
             geometry_path: merge,
             seed: args.seed,
             end: args.end,
+            min_gap: facts.min_gap,
             modes: ControlModes {
                 speed: args.speed_mode,
                 lane_change: args.lane_change_mode,
@@ -200,7 +201,7 @@ mod with_sumo {
             },
             out: args.out.clone(),
             timespace: !args.no_diagrams,
-            equip_ssm: args.ssm_all || !ssm_equipped,
+            equip_ssm: args.ssm_all || !facts.ssm,
         };
         Ok((config, settings))
     }

@@ -4,7 +4,7 @@ use crate::cli::common::{print, usage};
 use anyhow::Result;
 use clap::{Args, Subcommand};
 use mpgdrive::sumo::build::{BuiltForm, MergeNetwork};
-use mpgdrive::sumo::inspect::{find_merges, find_signalised_merges, proposal, proposals};
+use mpgdrive::sumo::inspect::{find_merges, proposal, proposals};
 use mpgdrive::sumo::positions::MergeForm;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -123,27 +123,11 @@ pub fn run(args: NetArgs) -> Result<ExitCode> {
         NetCommand::Build(args) => return build(args),
     };
     let merges = find_merges(&net)?;
-    let signalised = find_signalised_merges(&net)?;
-    let behind_signals = (!signalised.is_empty()).then(|| {
-        let lanes: Vec<&str> = signalised.iter().map(|m| m.target_lane.as_str()).collect();
-        format!(
-            "{} merge(s) behind a traffic light (into {}) left out: cosim does not drive signalised merges, \
-             the policies never met a signal",
-            signalised.len(),
-            lanes.join(", ")
-        )
-    });
     if merges.is_empty() {
-        return Err(usage(match behind_signals {
-            Some(note) => format!("{}: {note} (no other merge found)", net.display()),
-            None => format!(
-                "{}: no lane ends beside a lane that goes on, and none yields at a junction into a lane that another lane leads into (no merge found)",
-                net.display()
-            ),
-        }));
-    }
-    if let Some(note) = behind_signals {
-        eprintln!("net: {note}");
+        return Err(usage(format!(
+            "{}: no lane ends beside a lane that goes on, and none yields at a junction into a lane that another lane leads into (no merge found)",
+            net.display()
+        )));
     }
     if let Some(k) = merge.filter(|k| !(1..=merges.len()).contains(k)) {
         return Err(usage(format!(

@@ -57,6 +57,9 @@ pub struct CosimSettings {
     pub seed: u64,
     /// Simulated duration (s).
     pub end: f64,
+    /// The largest `minGap` of the route files' vehicle types (m): driven vehicles keep at
+    /// least this bumper gap ([`Controller::keep_min_gap`]).
+    pub min_gap: f64,
     /// SUMO speed and lane-change modes of the controlled vehicles.
     pub modes: ControlModes,
     /// How SUMO runs.
@@ -173,6 +176,8 @@ pub struct ControllerRun {
     pub collisions: Vec<CollisionEvent>,
     /// Steps where SUMO did not apply the commanded speed.
     pub speed_overrides: u64,
+    /// Driven vehicles that passed a red light (on a signalised merge; none expected).
+    pub red_light_passes: u64,
     /// Mean speed of the finished egos by distance to the conflict point ([`profile`]).
     pub speed_by_position: Vec<BandSpeed>,
     /// Mean speed of the target-lane vehicles in the control zone, by the same bands: the
@@ -325,6 +330,7 @@ pub fn run_controller(
             policy.clone(),
             settings.modes,
         );
+        controller.keep_min_gap(settings.min_gap);
         if settings.timespace {
             controller.record_timespace();
         }
@@ -356,9 +362,11 @@ pub fn run_controller(
     let mut records = Vec::new();
     let mut merges = Vec::new();
     let mut speed_overrides = 0;
+    let mut red_light_passes = 0;
     for (k, mut controller) in controllers.into_iter().enumerate() {
         lane_speed.add(&controller.lane_speed);
         speed_overrides += controller.overridden;
+        red_light_passes += controller.red_light_passes;
         // Every controller sees SUMO's collisions: one event, controlled if any drove a party.
         for event in &controller.collisions {
             let same = |c: &&mut CollisionEvent| {
@@ -404,6 +412,7 @@ pub fn run_controller(
         per_step(sumo_us),
         per_step(controller_us),
     );
+    run.red_light_passes = red_light_passes;
     run.merges = settings
         .merges
         .iter()
@@ -536,6 +545,7 @@ fn summarise(
         egos,
         collisions,
         speed_overrides,
+        red_light_passes: 0,
         speed_by_position: bands.bands(),
         lane_speed_by_position: Vec::new(),
         sumo_us_per_step,

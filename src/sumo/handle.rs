@@ -341,6 +341,15 @@ impl Sumo {
         self.vehicle_string(id, c::MpgVehicleString_MPG_ROAD_ID)
     }
 
+    /// The next traffic light on a vehicle's route, if one lies ahead: its state (SUMO's
+    /// signal character: `r` red, `y` yellow, `G`/`g` green, ...) and the distance from the
+    /// vehicle's front to its stop line (m).
+    pub fn next_signal(&self, id: &str) -> Result<Option<(char, f64)>, SumoError> {
+        let s = self.vehicle_string(id, c::MpgVehicleString_MPG_NEXT_SIGNAL)?;
+        Ok(s.split_once(' ')
+            .and_then(|(state, dist)| Some((state.chars().next()?, dist.parse().ok()?))))
+    }
+
     /// SUMO's version string, as SUMO reports it ("SUMO 1.15.0").
     pub fn version(&self) -> Result<String, SumoError> {
         let mut buf = std::ptr::null();

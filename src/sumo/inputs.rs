@@ -255,9 +255,9 @@ impl EdgeGraph {
 /// used is defined (a vType or a vTypeDistribution) or one of SUMO's defaults; and, given the
 /// network, every edge a route, trip or flow names (`edges`, `from`, `to`, `via`) is in it,
 /// consecutive edges of a route are connected, and a trip's or flow's `to` can be reached from
-/// its `from` through its `via` edges, as SUMO's router needs. Returns whether any of them
-/// equips vehicles with the SSM device (a `has.ssm.device` parameter set to true).
-pub fn check_routes(files: &[PathBuf], net: Option<&Path>) -> Result<bool, InputError> {
+/// its `from` through its `via` edges, as SUMO's router needs. Returns what the co-simulation
+/// needs to know of them ([`RouteFacts`]).
+pub fn check_routes(files: &[PathBuf], net: Option<&Path>) -> Result<RouteFacts, InputError> {
     let texts: Vec<(PathBuf, String)> = files
         .iter()
         .map(|f| Ok((f.clone(), read(f)?)))
@@ -350,23 +350,49 @@ pub fn check_routes(files: &[PathBuf], net: Option<&Path>) -> Result<bool, Input
             }
         }
     }
-    Ok(all().any(|n| {
+    let ssm = all().any(|n| {
         n.has_tag_name("param")
             && n.attribute("key") == Some("has.ssm.device")
             && n.attribute("value").is_some_and(|v| v.trim() == "true")
-    }))
+    });
+    let min_gap = all()
+        .filter(|n| n.has_tag_name("vType"))
+        .map(|n| {
+            n.attribute("minGap")
+                .and_then(|g| g.parse().ok())
+                .unwrap_or(SUMO_MIN_GAP)
+        })
+        .filter(|g: &f64| g.is_finite())
+        .fold(None, |m: Option<f64>, g| Some(m.map_or(g, |m| m.max(g))))
+        .unwrap_or(SUMO_MIN_GAP);
+    Ok(RouteFacts { ssm, min_gap })
+}
+
+/// SUMO's `minGap` of a vehicle type that sets none (m).
+pub const SUMO_MIN_GAP: f64 = 2.5;
+
+/// What route (and additional) files tell the co-simulation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RouteFacts {
+    /// A file equips vehicles with the SSM device (a `has.ssm.device` parameter set to true).
+    pub ssm: bool,
+    /// The largest `minGap` of the vehicle types they define ([`SUMO_MIN_GAP`] for a type that
+    /// sets none, and when they define none) (m): SUMO counts a bumper gap below it as a
+    /// collision unless `collision.mingap-factor` is 0.
+    pub min_gap: f64,
 }
 
 /// Every check before a co-simulation, given the configuration's files: each merge's geometry
 /// against its network, and the route files (`route_files`, a comma-separated list as SUMO
 /// takes it, replacing the configuration's when given). Returns where each merge's lanes lie
-/// along the road, and whether the inputs equip any vehicle with the SSM device.
+/// along the road, and what the route files tell (the SSM device also when the configuration
+/// equips vehicles with it).
 pub fn check_inputs(
     files: &ConfigFiles,
     route_files: Option<&Path>,
     merges: &[MergeGeometry],
     geometry_path: &Path,
-) -> Result<(Vec<LanePositions>, bool), InputError> {
+) -> Result<(Vec<LanePositions>, RouteFacts), InputError> {
     let positions = merges
         .iter()
         .enumerate()
@@ -389,8 +415,7 @@ pub fn check_inputs(
         None => files.routes.clone(),
     };
     routes.extend(files.additional.iter().cloned());
-    Ok((
-        positions,
-        check_routes(&routes, Some(&files.net))? || files.ssm_option,
-    ))
+    let mut facts = check_routes(&routes, Some(&files.net))?;
+    facts.ssm |= files.ssm_option;
+    Ok((positions, facts))
 }

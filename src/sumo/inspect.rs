@@ -10,10 +10,9 @@
 //!   lanes, then the right one). That is the paper's forced merge: the ramp lane ends at the
 //!   conflict point. A lane that turns onto several roads approaches an intersection and is not
 //!   a merge. Behind a traffic light (ramp metering, or a signal where two roads join) it is a
-//!   merge when both roads lead only into the one they join ([`find_signalised_merges`]), and
-//!   an intersection's approach otherwise; `cosim` does not drive signalised merges: the
-//!   policies never met a signal, and an ego beside a platoon held at its red light waits for
-//!   it as for a jam (measured on a ramp-metered merge built with netconvert, `--tls.set`).
+//!   merge when both roads lead only into the one they join, and an intersection's approach
+//!   otherwise (`cosim` holds driven vehicles at a red light, and a target-lane car held at
+//!   one is out of the merge until it turns green).
 //!
 //! Only lanes that passenger cars may use count (SUMO's `allow` and `disallow`): a sidewalk
 //! that ends at every junction, or a bicycle lane beside a ramp, is no acceleration lane.
@@ -67,17 +66,10 @@ const CHAIN: usize = 12;
 /// The merges of the network in `net`: acceleration lanes in the order of their ids, then
 /// junction merges in the order of their ramp lanes' ids.
 pub fn find_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
-    with_network(net, |doc| merges_of(doc).0)
+    with_network(net, merges_of)
 }
 
-/// The junction merges of the network in `net` behind a traffic light, which `cosim` does not
-/// drive (module docs).
-pub fn find_signalised_merges(net: &Path) -> Result<Vec<Merge>, InputError> {
-    with_network(net, |doc| merges_of(doc).1)
-}
-
-/// The merges of a network, and the junction merges behind a traffic light apart.
-fn merges_of(doc: &roxmltree::Document) -> (Vec<Merge>, Vec<Merge>) {
+fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
     let mut lanes: BTreeMap<String, Lane> = BTreeMap::new();
     for edge in doc.root_element().children().filter(|n| n.has_tag_name("edge")) {
         let Some(id) = edge.attribute("id").filter(|id| !id.starts_with(':')) else {
@@ -131,7 +123,7 @@ fn merges_of(doc: &roxmltree::Document) -> (Vec<Merge>, Vec<Merge>) {
         }
         out
     };
-    let (mut merges, mut signalised) = (Vec::new(), Vec::new());
+    let mut merges = Vec::new();
     // Acceleration lanes: a lane that ends beside a lane of its edge that goes on.
     for (id, lane) in &lanes {
         let left = format!("{}_{}", lane.edge, lane.index + 1);
@@ -182,13 +174,9 @@ fn merges_of(doc: &roxmltree::Document) -> (Vec<Merge>, Vec<Merge>) {
         }
         let mut target_lanes = chain(&feeder.from, false);
         target_lanes.extend(chain(target, true));
-        let found = placed(doc, chain(id, false), target_lanes, target);
-        match behind_signal {
-            true => signalised.extend(found),
-            false => merges.extend(found),
-        }
+        merges.extend(placed(doc, chain(id, false), target_lanes, target));
     }
-    (merges, signalised)
+    merges
 }
 
 /// Whether passenger cars may use a lane (SUMO's `allow` and `disallow` lists of vehicle
@@ -453,11 +441,7 @@ mod tests {
     }
 
     fn merges(text: &str) -> Vec<Merge> {
-        merges_of(&roxmltree::Document::parse(text).unwrap()).0
-    }
-
-    fn signalised(text: &str) -> Vec<Merge> {
-        merges_of(&roxmltree::Document::parse(text).unwrap()).1
+        merges_of(&roxmltree::Document::parse(text).unwrap())
     }
 
     #[test]
@@ -489,10 +473,8 @@ mod tests {
 
     #[test]
     fn behind_a_signal_two_roads_into_one_merge_and_an_intersection_does_not() {
-        // Ramp metering: a signal on the ramp's links, both roads lead only into `o`: a merge,
-        // found apart from the ones `cosim` drives.
-        assert!(merges(&net("O", "o", " tl=\"j\"")).is_empty());
-        let metered = signalised(&net("O", "o", " tl=\"j\""));
+        // Ramp metering: a signal on the ramp's links, both roads lead only into `o`.
+        let metered = merges(&net("O", "o", " tl=\"j\""));
         assert_eq!(metered.len(), 1);
         assert_eq!(metered[0].ramp_lanes, ["r_0"]);
         assert_eq!((metered[0].lane_start, metered[0].lane_end), (58.0, 98.0));
@@ -500,7 +482,7 @@ mod tests {
         let turn = r#"<edge id="t" priority="1"><lane id="t_0" index="0" length="50.00"/></edge>
             <connection from="a" to="t" fromLane="0" toLane="0" state="O" tl="j"/>
             </net>"#;
-        assert!(signalised(&net("O", "o", " tl=\"j\"").replace("</net>", turn)).is_empty());
+        assert!(merges(&net("O", "o", " tl=\"j\"").replace("</net>", turn)).is_empty());
         // Without the signal the same ramp still yields into `o`: a merge.
         assert_eq!(merges(&net("M", "m", "").replace("</net>", turn)).len(), 1);
     }

@@ -40,6 +40,8 @@ pub struct LanePositions {
     /// Speed limit of the target lane beside the acceleration lane (m/s), the road's speed
     /// where egos merge.
     road_speed: Option<f64>,
+    /// A traffic light controls a link out of a ramp or target lane.
+    signalised: bool,
 }
 
 /// How the ramp joins the target lane.
@@ -161,11 +163,15 @@ impl LanePositions {
             place(&ramp_lanes[k], start, 1.0)?;
         }
         let road_speed = net.get(&meets).and_then(|l| l.speed);
+        let signalised = links
+            .iter()
+            .any(|l| l.signalised && (ramp_lanes.contains(&l.from) || target_lanes.contains(&l.from)));
         Ok(LanePositions {
             lanes,
             form,
             entry,
             road_speed,
+            signalised,
         })
     }
 
@@ -184,6 +190,12 @@ impl LanePositions {
     /// lane, or the one a junction merge leads into), m/s; none when the network does not give one.
     pub fn road_speed(&self) -> Option<f64> {
         self.road_speed
+    }
+
+    /// Whether a traffic light controls a link out of a ramp or target lane (ramp metering, or
+    /// a signal where the two roads join).
+    pub fn signalised(&self) -> bool {
+        self.signalised
     }
 
     /// The position of lane position `lane_pos` on `lane` (none for a lane off the merge).

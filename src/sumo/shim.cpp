@@ -173,6 +173,13 @@ int MPG_FN(vehicle_string)(const char* id, int which, const char** buf, size_t* 
             case MPG_LANE_ID: put_string(api::Vehicle::getLaneID(id), buf, len); break;
             case MPG_ROAD_ID: put_string(api::Vehicle::getRoadID(id), buf, len); break;
             case MPG_TYPE_ID: put_string(api::Vehicle::getTypeID(id), buf, len); break;
+            case MPG_NEXT_SIGNAL: {
+                const auto next = api::Vehicle::getNextTLS(id);
+                put_string(next.empty() ? std::string()
+                                        : std::string(1, next.front().state) + " " + std::to_string(next.front().dist),
+                           buf, len);
+                break;
+            }
             default: throw std::invalid_argument("unknown vehicle string " + std::to_string(which));
         }
     });

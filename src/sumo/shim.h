@@ -65,6 +65,10 @@ enum MpgVehicleString {
     MPG_LANE_ID = 0,
     MPG_ROAD_ID = 1,
     MPG_TYPE_ID = 2,
+    /* The next traffic light on the vehicle's route: its state (one of SUMO's signal
+       characters, r, y, G, ...), a space and the distance to it in metres ("r 35.200000"), or
+       "" when none lies ahead. */
+    MPG_NEXT_SIGNAL = 3,
 };
 
 const char* MPG_FN(last_error)(void);
