@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# The merge zoo (issue 62): twelve merge networks built here with `mpgdrive net build` from
+# The merge zoo (issue 62): thirteen merge networks built here with `mpgdrive net build` from
 # parameters (nothing committed), spanning freeway speed (20 / 30 / 36 m/s), the merge form
-# (junction merge, 60 m / 150 m / 250 m acceleration lane, lane drop), straight and curved
-# ramps, 1 and 3 freeway lanes; then the SUMO grid of scripts/traffic_acceptance.sh on every one
+# (junction merge, with and without a traffic light, 60 m / 150 m / 250 m acceleration lane,
+# lane drop), straight and curved ramps, 1 and 3 freeway lanes; then the SUMO grid of scripts/traffic_acceptance.sh on every one
 # of them (demand 0.8 / 1.0 / 1.2, SUMO seeds 0-2, ego only and the game, against SUMO's
 # drivers) with 600 s runs. Writes OUT/nets/<name>/ (the networks), OUT/<name>/ (the runs) and
 # OUT/acceptance.md (one table per network, written by scripts/traffic_acceptance.py, with
@@ -26,6 +26,7 @@ declare -A zoo=(
     [acc250-v36]="--form acceleration --accel-lane 250 --speed 36 --lane-flow 900"
     [acc150-v30-l3]="--form acceleration --accel-lane 150 --speed 30 --lanes 3 --lane-flow 700"
     [junction-v20]="--form junction --speed 20 --lane-flow 600"
+    [junction-v20-signal]="--form junction --speed 20 --lane-flow 600 --signal"
     [junction-v30-curved]="--form junction --speed 30 --lane-flow 600 --curved"
     [junction-v36]="--form junction --speed 36 --lane-flow 600"
     [junction-v30-l3]="--form junction --speed 30 --lanes 3 --lane-flow 300"

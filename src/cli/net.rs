@@ -62,6 +62,9 @@ struct BuildArgs {
     /// A curved ramp instead of a straight one.
     #[arg(long)]
     curved: bool,
+    /// A traffic light where the ramp joins (--form junction; the two roads take turns).
+    #[arg(long)]
+    signal: bool,
     /// Demand per freeway lane (veh/h).
     #[arg(long, default_value_t = 500.0)]
     lane_flow: f64,
@@ -92,6 +95,7 @@ fn build(args: BuildArgs) -> Result<ExitCode> {
         accel_lane: args.accel_lane,
         upstream: args.upstream,
         curved: args.curved,
+        signal: args.signal,
         lane_flow: args.lane_flow,
         ramp_flow: args.ramp_flow,
         duration: args.duration,

@@ -47,6 +47,9 @@ pub struct MergeNetwork {
     pub upstream: f64,
     /// The ramp curves in (a Bezier) instead of running straight at an angle.
     pub curved: bool,
+    /// A traffic light where the ramp joins ([`BuiltForm::Junction`] only; netconvert's own
+    /// program: the two roads take turns).
+    pub signal: bool,
     /// Demand per freeway lane (veh/h).
     pub lane_flow: f64,
     /// Ramp demand (veh/h; on the dropped lane for a lane drop).
@@ -115,6 +118,11 @@ impl MergeNetwork {
                 "ramps {} must be 1 to 8 (1 for a lane drop)",
                 self.ramps
             )));
+        }
+        if self.signal && self.form != BuiltForm::Junction {
+            return Err(BuildError::Parameter(
+                "a signal needs the junction form (--form junction)".to_owned(),
+            ));
         }
         if !(self.spacing.is_finite() && self.spacing >= 2.0 * RAMP_RUN) {
             return Err(BuildError::Parameter(format!(
@@ -263,9 +271,18 @@ impl MergeNetwork {
                 nodes.push((format!("ramp_start{s}"), x - RAMP_RUN, -RAMP_DROP));
             }
         }
+        let kind = |id: &str| match self.signal && id.starts_with("gore") {
+            true => "traffic_light",
+            false => "priority",
+        };
         let items: String = nodes
             .iter()
-            .map(|(id, x, y)| format!("  <node id=\"{id}\" x=\"{x:.2}\" y=\"{y:.2}\" type=\"priority\"/>\n"))
+            .map(|(id, x, y)| {
+                format!(
+                    "  <node id=\"{id}\" x=\"{x:.2}\" y=\"{y:.2}\" type=\"{}\"/>\n",
+                    kind(id)
+                )
+            })
             .collect();
         format!("<nodes>\n{items}</nodes>\n")
     }

@@ -66,7 +66,10 @@
 //! ([`LanePositions`]). Control ends when the ego is
 //! `release_after` metres past the conflict point on the target lane; SUMO then drives it
 //! again (speed mode 31, lane-change mode 1621, SUMO's defaults). Vehicles that leave,
-//! teleport or vanish are dropped from the games at once.
+//! teleport or vanish are dropped from the games at once. On a signalised merge a vehicle held
+//! by its red light before the merge is out of it until the light turns green (SUMO drives
+//! it: `Car::held_at_red`), and a driven vehicle stops at a red light ahead
+//! (`Controller::signal_bound`).
 
 use crate::config::{Config, Entry};
 use crate::engine::outcome::EgoStats;
@@ -153,6 +156,9 @@ struct Car {
     /// The next traffic light on its route, on a signalised merge: its state (SUMO's signal
     /// character) and the distance from the car's front to its stop line (m).
     signal: Option<(char, f64)>,
+    /// A ramp car held by its red light before the merge: out of the games until it turns
+    /// green (SUMO drives it meanwhile).
+    held_at_red: bool,
 }
 
 /// How far past the ramp's end (m) a target-lane stop line still belongs to the merge's
@@ -258,7 +264,7 @@ pub struct Controller {
     /// Steps where SUMO did not reach the commanded speed (by more than 0.01 m/s).
     pub overridden: u64,
     /// Driven vehicles that passed a stop line while their light showed red
-    /// ([`Controller::signal_bound`] holds them; SUMO's speed mode may too).
+    /// (`Controller::signal_bound` holds them; SUMO's speed mode may too).
     pub red_light_passes: u64,
     /// Each driven vehicle's distance to the red light ahead of it at the last step.
     red_ahead: HashMap<String, f64>,
@@ -758,14 +764,18 @@ impl Controller {
                 true => sumo.next_signal(&id)?,
                 false => None,
             };
-            // A target-lane car held by its red light before the junction is out of the
-            // merge until its light turns green (SUMO drives it): the light gives the ramp its
-            // turn, and an ego beside a platoon held at the light waited for it as for a jam.
-            if let Some(('r' | 'R' | 'u', d)) = signal {
-                let before_merge = self.lane_end.is_some_and(|end| front + d <= end + SIGNAL_REACH);
-                if !ramp && d >= 0.0 && before_merge {
-                    continue;
+            // A car held by its red light before the merge is out of it until the light turns
+            // green (SUMO drives it, and stops it there): the light gives the other road its
+            // turn. An ego beside a platoon held at the light waited for it as for a jam, and
+            // players made room for egos held at theirs.
+            let held_at_red = match signal {
+                Some(('r' | 'R' | 'u', d)) => {
+                    d >= 0.0 && self.lane_end.is_some_and(|end| front + d <= end + SIGNAL_REACH)
                 }
+                _ => false,
+            };
+            if held_at_red && !ramp {
+                continue;
             }
             // A driven car that had a red light ahead last step and has passed it since.
             if let Some(was) = self.red_ahead.remove(&id) {
@@ -775,6 +785,7 @@ impl Controller {
             }
             cars.push(Car {
                 signal,
+                held_at_red,
                 on_ramp: ramp && x < in_lane_from,
                 ramp_lane: ramp.then_some(lane),
                 path_leader,
@@ -808,6 +819,9 @@ impl Controller {
             }
             if tracked.is_none() && !self.pick_up(sumo, cars, k, time)? {
                 continue;
+            }
+            if c.held_at_red {
+                continue; // it has no game until its light turns green (`Car::held_at_red`)
             }
             let (merged, release) = self.merge_progress(c);
             let ego = self.egos.get_mut(&c.id).expect("tracked");
@@ -1062,7 +1076,7 @@ impl Controller {
                 if self.rules.sequential {
                     next_v.insert(j, car.v + a * rules.dt);
                 }
-                if let Some(('r' | 'R', d)) = car.signal {
+                if let Some(('r' | 'R', d)) = car.signal.filter(|&(_, d)| d >= 0.0) {
                     self.red_ahead.insert(car.id.clone(), d);
                 }
                 applied[r] = (j, a);
@@ -1120,14 +1134,20 @@ impl Controller {
     }
 
     /// The largest action that stops `car`'s front at the stop line of a red light ahead
-    /// ([`Car::signal`]: ramp metering, or the signal where two roads join), or of a yellow
-    /// one it can stop at braking at `sim.b_safe` at most; none at green or without a light.
-    /// SUMO's speed mode holds its own vehicles and, with its red-light bit (on in cosim's
-    /// default), the controlled ones too; this holds them whatever the speed mode.
+    /// ([`Car::signal`]: ramp metering, or the signal where two roads join), braking at
+    /// `sim.b_safe` from where it must (harder only when it must: the action's own bound is
+    /// `g`), or at the stop line of a yellow one it can still stop at that way; none at green,
+    /// without a light, or past the stop line (it clears the junction). SUMO's speed mode holds
+    /// its own vehicles and, with its red-light bit (on in cosim's default), the controlled
+    /// ones too; this holds them whatever the speed mode. Braking at `g` from the last moment
+    /// instead, an ego that met the yellow light 88 m before the line at 18 m/s was still
+    /// 10 m before it when the light turned red, too close to stop (the zoo's
+    /// `junction-v20-signal`, demand 1.2, speed mode 0).
     fn signal_bound(car: &Car, rules: &WorldRules) -> Option<f64> {
-        let (state, dist) = car.signal?;
+        let (state, dist) = car.signal.filter(|&(_, d)| d >= 0.0)?;
         let mut line = rules.gate;
         line.conflict_point = car.x + dist;
+        line.brake = rules.gate.b_safe;
         let bound = stop_bound(&car.x, &car.v, &line);
         match state {
             'r' | 'R' | 'u' => Some(bound),
@@ -1311,6 +1331,7 @@ mod tests {
             ramp_lane: on_ramp.then(|| "merge_0".to_owned()),
             path_leader: None,
             signal: None,
+            held_at_red: false,
         }
     }
 
@@ -1324,10 +1345,16 @@ mod tests {
             signal: Some((state, dist)),
             ..car("c", 100.0, 10.0, true)
         };
-        // 30 m before the line at 10 m/s: the largest action that still stops its front there.
+        // 30 m before the line at 10 m/s: the largest action that still stops its front there
+        // braking at b_safe.
         let mut line = rules.gate;
-        line.conflict_point = 130.0;
+        (line.conflict_point, line.brake) = (130.0, rules.gate.b_safe);
         let stop = stop_bound(&100.0, &10.0, &line);
+        // 10 m/s stops in 12.5 m at 4 m/s^2: 30 m ahead it may still accelerate, 13 m ahead it
+        // must brake (this step's 1 m and the stop margin leave 11.9 m), within g.
+        assert!(stop > 0.0, "{stop}");
+        let near = Controller::signal_bound(&at_light('r', 13.0), &rules).unwrap();
+        assert!(near < 0.0 && near > -rules.max_accel, "{near}");
         assert_eq!(Controller::signal_bound(&at_light('r', 30.0), &rules), Some(stop));
         assert_eq!(Controller::signal_bound(&at_light('y', 30.0), &rules), Some(stop));
         // Green, or no light: nothing.
@@ -1341,6 +1368,8 @@ mod tests {
         let late = Controller::signal_bound(&at_light('r', 1.0), &rules).unwrap();
         assert!(late < -rules.gate.b_safe, "{late}");
         assert_eq!(Controller::signal_bound(&at_light('y', 1.0), &rules), None);
+        // Past the stop line (SUMO's negative distance) it clears the junction at red too.
+        assert_eq!(Controller::signal_bound(&at_light('r', -2.0), &rules), None);
     }
 
     #[test]
