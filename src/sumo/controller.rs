@@ -156,8 +156,8 @@ struct Car {
     /// The next traffic light on its route, on a signalised merge: its state (SUMO's signal
     /// character) and the distance from the car's front to its stop line (m).
     signal: Option<(char, f64)>,
-    /// A ramp car held by its red light before the merge: out of the games until it turns
-    /// green (SUMO drives it meanwhile).
+    /// A ramp car held by its red light before the merge: in no game until the light turns
+    /// green (SUMO drives it meanwhile, and stops it there).
     held_at_red: bool,
 }
 
@@ -777,9 +777,10 @@ impl Controller {
             if held_at_red && !ramp {
                 continue;
             }
-            // A driven car that had a red light ahead last step and has passed it since.
+            // A driven car that had a red light ahead last step and has passed it since (SUMO
+            // gives the light a car is crossing at a negative distance, or none).
             if let Some(was) = self.red_ahead.remove(&id) {
-                if signal.is_none_or(|(_, d)| d > was + 1.0) {
+                if signal.is_none_or(|(_, d)| d < 0.0 || d > was + 1.0) {
                     self.red_light_passes += 1;
                 }
             }
@@ -833,11 +834,17 @@ impl Controller {
             }
             if self.traffic {
                 // Merge traffic: every vehicle around the ego is in its game, now (in the
-                // order of `cars`, so that every game shares one scene).
-                games.push(Game {
-                    members: (0..cars.len()).map(|j| (j, 0)).collect(),
-                    ego: k,
-                });
+                // order of `cars`, so that every game shares one scene), but ramp cars held at
+                // their red light (`Car::held_at_red`).
+                let members: Vec<(usize, usize)> = (0..cars.len())
+                    .filter(|&j| !cars[j].held_at_red)
+                    .map(|j| (j, 0))
+                    .collect();
+                let ego = members
+                    .iter()
+                    .position(|&(j, _)| j == k)
+                    .expect("the ego is not held");
+                games.push(Game { members, ego });
                 continue;
             }
             let mut members = vec![(k, 0)];
