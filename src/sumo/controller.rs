@@ -161,6 +161,11 @@ struct Car {
     held_at_red: bool,
 }
 
+/// Whether a SUMO signal state stops traffic: red, or red-yellow before green.
+fn is_red(state: char) -> bool {
+    matches!(state, 'r' | 'R' | 'u')
+}
+
 /// How far past the ramp's end (m) a target-lane stop line still belongs to the merge's
 /// junction: the two roads' stop lines lie a few metres apart where they meet.
 const SIGNAL_REACH: f64 = 10.0;
@@ -768,12 +773,9 @@ impl Controller {
             // green (SUMO drives it, and stops it there): the light gives the other road its
             // turn. An ego beside a platoon held at the light waited for it as for a jam, and
             // players made room for egos held at theirs.
-            let held_at_red = match signal {
-                Some(('r' | 'R' | 'u', d)) => {
-                    d >= 0.0 && self.lane_end.is_some_and(|end| front + d <= end + SIGNAL_REACH)
-                }
-                _ => false,
-            };
+            let held_at_red = signal.is_some_and(|(state, d)| {
+                is_red(state) && d >= 0.0 && self.lane_end.is_some_and(|end| front + d <= end + SIGNAL_REACH)
+            });
             if held_at_red && !ramp {
                 continue;
             }
@@ -1083,7 +1085,7 @@ impl Controller {
                 if self.rules.sequential {
                     next_v.insert(j, car.v + a * rules.dt);
                 }
-                if let Some(('r' | 'R', d)) = car.signal.filter(|&(_, d)| d >= 0.0) {
+                if let Some((_, d)) = car.signal.filter(|&(state, d)| is_red(state) && d >= 0.0) {
                     self.red_ahead.insert(car.id.clone(), d);
                 }
                 applied[r] = (j, a);
@@ -1157,9 +1159,8 @@ impl Controller {
         line.brake = rules.gate.b_safe;
         let bound = stop_bound(&car.x, &car.v, &line);
         match state {
-            'r' | 'R' | 'u' => Some(bound),
             'y' | 'Y' => (bound >= -rules.gate.b_safe).then_some(bound),
-            _ => None,
+            _ => is_red(state).then_some(bound),
         }
     }
 

@@ -363,7 +363,7 @@ pub fn check_routes(files: &[PathBuf], net: Option<&Path>) -> Result<RouteFacts,
                 .unwrap_or(SUMO_MIN_GAP)
         })
         .filter(|g: &f64| g.is_finite())
-        .fold(None, |m: Option<f64>, g| Some(m.map_or(g, |m| m.max(g))))
+        .reduce(f64::max)
         .unwrap_or(SUMO_MIN_GAP);
     Ok(RouteFacts { ssm, min_gap })
 }

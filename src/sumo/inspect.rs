@@ -11,8 +11,8 @@
 //!   conflict point. A lane that turns onto several roads approaches an intersection and is not
 //!   a merge. Behind a traffic light (ramp metering, or a signal where two roads join) it is a
 //!   merge when both roads lead only into the one they join, and an intersection's approach
-//!   otherwise (`cosim` holds driven vehicles at a red light, and a target-lane car held at
-//!   one is out of the merge until it turns green).
+//!   otherwise (`cosim` holds driven vehicles at a red light, and a vehicle held at one is
+//!   out of the merge until it turns green).
 //!
 //! Only lanes that passenger cars may use count (SUMO's `allow` and `disallow`): a sidewalk
 //! that ends at every junction, or a bicycle lane beside a ramp, is no acceleration lane.
