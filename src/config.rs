@@ -84,6 +84,10 @@ pub enum ProjectionOrder {
     /// Ours: front to back, each vehicle's leader bound reading its leader's speed after this
     /// step, already settled. A closing speed is corrected once.
     Sequential,
+    /// Ours: every vehicle at once, as the paper's, but a leader and its follower that are
+    /// both projected share the correction of their pair: each takes half of what its bound
+    /// asks beyond keeping its speed, so a closing speed is corrected once, in one pass.
+    Shared,
 }
 
 /// How a ramp vehicle enters the target lane.

@@ -424,3 +424,24 @@ fn the_simultaneous_projection_chatters_where_the_sequential_one_settles() {
     let second = pair_actions(Simultaneous, 2)[1];
     assert_abs_diff_eq!(second[0], 3.466_666_666_666_6, epsilon = 1e-9);
 }
+
+#[test]
+fn the_shared_projection_halves_a_pairs_correction_and_settles() {
+    use mpgdrive::config::ProjectionOrder::Shared;
+    use mpgdrive::eval::scenario_sets::longest_alternation;
+    // The pair above. Step 1: the pair is within its TTC at its current speeds (closing 4 of
+    // 4.2 m/s allowed), only the raw actions violate it: no halving, -2 / +2 as simultaneous.
+    // Step 2 (leader 121 m at 9.8 m/s, follower 101.4 m at 14.2): after it the gap is
+    // (121 + 0.98) - (101.4 + 1.42) - 7 = 12.16 m, 4.0533 m/s allowed, 4.4 closing now: the
+    // leader's push (14.2 - 4.0533 - 9.8) / 0.1 = +3.4667 and the follower's hold -3.4667
+    // are halved to +-1.7333, which together close the gap by the allowed 4.0533 m/s, once.
+    let a = pair_actions(Shared, 200);
+    assert_abs_diff_eq!(a[0][0], -2.0, epsilon = 1e-9);
+    assert_abs_diff_eq!(a[0][1], 2.0, epsilon = 1e-9);
+    assert_abs_diff_eq!(a[1][0], 1.733_333_333_333_3, epsilon = 1e-9);
+    assert_abs_diff_eq!(a[1][1], -1.733_333_333_333_3, epsilon = 1e-9);
+    let lead: Vec<f64> = a.iter().map(|x| x[0]).collect();
+    let follow: Vec<f64> = a.iter().map(|x| x[1]).collect();
+    let flips = (longest_alternation(&lead), longest_alternation(&follow));
+    assert!(flips.0 <= 1 && flips.1 <= 1, "{flips:?}");
+}

@@ -124,6 +124,21 @@ fn engines_agree_in_the_sequential_projection_order() {
 }
 
 #[test]
+fn engines_agree_in_the_shared_projection_order() {
+    // At once, a projected pair halving its correction: the scalar engine reads whether each
+    // neighbour is projected from the actor, the tensor engine from its mask. Constant-speed
+    // players close in on each other, so pushes and holds bind; in merge traffic the human
+    // drivers are not projected and take no half.
+    use mpgdrive::config::ProjectionOrder::Shared;
+    let mut config = ungated();
+    config.sim.projection_order = Shared;
+    assert!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true) > 0);
+    let mut traffic = common::traffic();
+    traffic.sim.projection_order = Shared;
+    traffic_engines_agree(&traffic);
+}
+
+#[test]
 fn the_sequential_order_records_one_projection_pass_a_step() {
     // Its passes settle on values; the tape gets one recorded pass a step, as in the
     // simultaneous order, plus the leaders' settled speeds (3 operations). Recording every

@@ -27,7 +27,7 @@ use crate::world::merge_gate::lane_end_holds;
 use crate::world::neighbors::{Neighbors, find_neighbors, front_to_back};
 use crate::world::rules::WorldRules;
 use crate::world::state::Scene;
-use crate::world::step::{Settled, advance, applied_action_with, first_collision_among};
+use crate::world::step::{Projected, Settled, advance, applied_action_with, first_collision_among};
 
 /// What a rollout keeps besides the per-episode outcome.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -256,12 +256,15 @@ fn run_chunk(
                 if human {
                     raw[b * n + i] = driver_accel(config, Driver::Idm, scene, i, &nb[i]);
                 }
-                let learning = actor.learning(i) && !human;
                 let live = EntryDecision {
                     merges: rules.merges_early(scene, i),
                     held: lane_end_holds(scene, i, &rules.gate),
                 };
                 let entry = actor.entry(step, b, i, live);
+                let projected = |j: usize| {
+                    opts.feasibility
+                        && (config.sim.project_non_learning || (actor.learning(j) && !scene.is_human(j)))
+                };
                 merging[i] = entry.merges;
                 let settled = Settled {
                     held: Some(entry.held),
@@ -270,16 +273,13 @@ fn run_chunk(
                         .lane_leader
                         .filter(|_| rules.sequential)
                         .map(|j| scene.vehicles[j].v + applied[j] * dt),
+                    projected: Projected {
+                        leader: nb[i].lane_leader.is_some_and(projected),
+                        follower: nb[i].lane_follower.is_some_and(projected),
+                    },
                 };
-                applied[i] = applied_action_with(
-                    &rules,
-                    opts.feasibility && (config.sim.project_non_learning || learning),
-                    scene,
-                    i,
-                    &nb[i],
-                    raw[b * n + i],
-                    settled,
-                );
+                applied[i] =
+                    applied_action_with(&rules, projected(i), scene, i, &nb[i], raw[b * n + i], settled);
             }
             let base = base.in_scene(scene);
             if ego_only {

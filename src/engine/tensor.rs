@@ -19,7 +19,7 @@ use crate::world::idm::{idm_accel, idm_v0};
 use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
-use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible};
+use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible, share_bounds};
 use crate::world::state::{Scene, Vehicle};
 use crate::world::step::first_collision_among;
 use std::rc::Rc;
@@ -352,6 +352,20 @@ fn limits_once(
         let follow = nb.get(batch, Which::LaneFollower);
         let next = leader_next.unwrap_or(&lead.v);
         let (lo, hi) = feasible_interval_after(&batch.x, &batch.v, &lead, next, &follow, &rules.projection());
+        let (lo, hi) = if rules.shared {
+            // A neighbour is projected where it is present and (with `only`) where `only` is 1.
+            let projected = |which: Which, n: &Neighbor<Var>| match only {
+                Some(mask) => mask.gather_cols(&nb.index[which as usize]).mul(&n.present),
+                None => n.present.clone(),
+            };
+            let (f, l) = (
+                projected(Which::LaneFollower, &follow),
+                projected(Which::LaneLeader, &lead),
+            );
+            share_bounds(&lo, &hi, &f, &l)
+        } else {
+            (lo, hi)
+        };
         let lane = project_feasible(raw, &lo, &hi);
         let lane = if rules.players_make_room {
             make_room(rules, batch, &lane)

@@ -108,8 +108,12 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 20] {
         ("sim.safety_gap", c.sim.safety_gap),
         ("sim.time_headway", c.sim.time_headway),
         (
-            "sim.projection_order (1: sequential)",
-            flag(c.sim.projection_order == crate::config::ProjectionOrder::Sequential),
+            "sim.projection_order (1: sequential, 2: shared)",
+            match c.sim.projection_order {
+                crate::config::ProjectionOrder::Simultaneous => 0.0,
+                crate::config::ProjectionOrder::Sequential => 1.0,
+                crate::config::ProjectionOrder::Shared => 2.0,
+            },
         ),
         ("sim.merge_gate", flag(c.sim.merge_gate)),
         ("sim.b_safe", c.sim.b_safe),

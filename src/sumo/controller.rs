@@ -86,7 +86,7 @@ use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval};
 use crate::world::state::{Scene, Vehicle};
-use crate::world::step::{Settled, applied_action_with};
+use crate::world::step::{Projected, Settled, applied_action_with};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::time::Instant;
@@ -1002,6 +1002,8 @@ impl Controller {
             order.sort_by(|&p, &q| cars[rows[q].2].x.total_cmp(&cars[rows[p].2].x));
         }
         let mut next_v: HashMap<usize, f64> = HashMap::new();
+        // The scenes' vehicles a policy drives: projected too, for the shared order.
+        let driven: HashSet<(usize, usize)> = rows.iter().map(|&(si, m, _)| (si, m)).collect();
         let mut applied = vec![(0, 0.0); rows.len()];
         for r in order {
             let ((si, m, j), a) = (rows[r], raw[r]);
@@ -1025,6 +1027,10 @@ impl Controller {
                 let settled = Settled {
                     held: junction_ramp.then_some(false),
                     leader_next_v: scene_leader.and_then(|l| next_v.get(&l).copied()),
+                    projected: Projected {
+                        leader: nb.lane_leader.is_some_and(|l| driven.contains(&(si, l))),
+                        follower: nb.lane_follower.is_some_and(|f| driven.contains(&(si, f))),
+                    },
                 };
                 let mut a = applied_action_with(
                     &rules,

@@ -38,6 +38,9 @@ pub struct WorldRules {
     /// Whether the feasibility projection settles vehicles front to back
     /// (`sim.projection_order = "sequential"`), each leader bound reading the leader's next speed.
     pub sequential: bool,
+    /// Whether a projected leader and follower share their pair's correction
+    /// (`sim.projection_order = "shared"`, [`crate::world::safety::share_bounds`]).
+    pub shared: bool,
     /// Whether the merge gate holds ramp vehicles when the feasibility rules are on.
     pub merge_gate: bool,
     /// The merge gate's parameters (clearance, braking, horizon).
@@ -66,6 +69,7 @@ impl WorldRules {
             tau_s: config.sim.tau_s,
             time_headway: config.sim.time_headway,
             sequential: config.sim.projection_order == crate::config::ProjectionOrder::Sequential,
+            shared: config.sim.projection_order == crate::config::ProjectionOrder::Shared,
             merge_gate: config.sim.merge_gate,
             gate: GateRules::new(config),
             players_make_room: config.sim.players_make_room,

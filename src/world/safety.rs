@@ -47,6 +47,11 @@
 //! step for 20 s). Sequential (ours): front to back, each vehicle's leader bound reads its
 //! leader's speed after this step, already settled ([`feasible_interval_after`]); the
 //! closing speed is corrected once.
+//! Shared (ours): at once, as the paper's, but where a leader and its follower are both
+//! projected each takes half of what its bound asks beyond keeping its speed
+//! ([`share_bounds`]). With `time_headway = 0` the leader's push `lo > 0` and the follower's
+//! hold `hi = -lo` are the same closing speed seen from both ends, so the halves add up to it
+//! once, in one pass, which the training's gradient follows exactly.
 //!
 //! **Empty interval** (`lo > hi`: no action keeps both TTCs): the leader bound wins. The
 //! vehicle applies `hi`, the largest action that keeps its TTC to its leader (clipped to
@@ -136,6 +141,18 @@ pub fn feasible_interval_after<T: Num>(
     (
         T::select(&follower.present, &lo, &lo.full(-NO_BOUND)),
         T::select(&leader.present, &hi, &hi.full(NO_BOUND)),
+    )
+}
+
+/// The shared projection order's bounds: where the follower is projected too
+/// (`follower_shares` 1), a push `lo > 0` is halved; where the leader is (`leader_shares` 1), a
+/// hold `hi < 0` is halved. The other half is the neighbour's own bound's.
+pub fn share_bounds<T: Num>(lo: &T, hi: &T, follower_shares: &T, leader_shares: &T) -> (T, T) {
+    let push = lo.clamp_c(0.0, NO_BOUND);
+    let hold = hi.clamp_c(-NO_BOUND, 0.0);
+    (
+        T::select(follower_shares, &lo.sub(&push.mul_c(0.5)), lo),
+        T::select(leader_shares, &hi.sub(&hold.mul_c(0.5)), hi),
     )
 }
 

@@ -8,7 +8,7 @@ use crate::world::geometry::{Footprint, boxes_overlap};
 use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
 use crate::world::neighbors::Neighbors;
 use crate::world::rules::WorldRules;
-use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible};
+use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible, share_bounds};
 use crate::world::state::{Scene, Vehicle};
 
 /// A neighbour of `scene` as the generic equations take it (absent: far ahead, same speed).
@@ -79,6 +79,19 @@ pub struct Settled {
     /// The lane leader's speed after this step, in the sequential projection order
     /// ([`WorldRules::sequential`]).
     pub leader_next_v: Option<f64>,
+    /// Whether the lane leader and the lane follower are projected too: in the shared
+    /// projection order ([`WorldRules::shared`]) the vehicle then takes half of its pair's
+    /// correction ([`share_bounds`]).
+    pub projected: Projected,
+}
+
+/// Whether a vehicle's lane leader and lane follower are projected too.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Projected {
+    /// The lane leader is.
+    pub leader: bool,
+    /// The lane follower is.
+    pub follower: bool,
 }
 
 /// [`applied_action`] with what `settled` gives.
@@ -98,7 +111,17 @@ pub fn applied_action_with(
         let lead = neighbor_of(scene, nb.lane_leader, me);
         let follow = neighbor_of(scene, nb.lane_follower, me);
         let lead_next = settled.leader_next_v.unwrap_or(lead.v);
-        let (lo, hi) = feasible_interval_after(&me.x, &me.v, &lead, &lead_next, &follow, &rules.projection());
+        let (mut lo, mut hi) =
+            feasible_interval_after(&me.x, &me.v, &lead, &lead_next, &follow, &rules.projection());
+        if rules.shared {
+            let flag = |b: bool| f64::from(u8::from(b));
+            (lo, hi) = share_bounds(
+                &lo,
+                &hi,
+                &flag(settled.projected.follower),
+                &flag(settled.projected.leader),
+            );
+        }
         a = project_feasible(&a, &lo, &hi);
         if rules.players_make_room {
             if let Some(j) = player_makes_room_for(&rules.road, scene, i) {
