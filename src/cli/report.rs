@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::config::Config;
-use mpgdrive::eval::scenario_sets::{DESCRIBED_STATES, markdown};
+use mpgdrive::eval::scenario_sets::{DESCRIBED_STATES, markdown, percentile_99};
 use mpgdrive::eval::study::{Study, Surrounding, evaluate};
 use mpgdrive::policy::file::Sidecar;
 use mpgdrive::policy::{Mode, PolicyNet};
@@ -152,7 +152,7 @@ pub fn run(args: ReportArgs) -> Result<ExitCode> {
     let marl = evaluate(&config, &mpg, &[], &all, threads)?;
     let single = evaluate(&config, &sarl, &mpg, &all, threads)?;
     let claims = study_section(&mut doc, &ctx, &marl, &single)?;
-    let families = scenarios_section(&mut doc, &ctx)?;
+    let families = scenarios_section(&mut doc, &ctx, &marl)?;
     atomic::write(&args.out.join("claims.md"), format!("{claims}\n{families}"))?;
     training_section(&mut doc, &ctx, (&mpg, &sarl), (&marl, &single))?;
     // The penetration study, co-simulation, NGSIM and batch, when present.
@@ -263,7 +263,7 @@ fn study_section(doc: &mut Document, ctx: &Sections, marl: &Study, single: &Stud
 /// The paper's specific scenarios, run with the MARL policy and drawn, then as distributions
 /// (every seed over the states drawn from each description); returns the distributions'
 /// tables.
-fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<String> {
+fn scenarios_section(doc: &mut Document, ctx: &Sections, marl: &Study) -> Result<String> {
     let (args, exe, cfg) = (ctx.args, EXE, &ctx.cfg);
     doc.push(Block::Heading(2, "Specific scenarios".into()));
     for preset in [Preset::One, Preset::Two] {
@@ -301,7 +301,15 @@ fn scenarios_section(doc: &mut Document, ctx: &Sections) -> Result<String> {
     doc.push(Block::Heading(3, "The scenarios as distributions".into()));
     let mut families = String::from("## The paper's scenarios as distributions\n");
     for preset in [Preset::One, Preset::Two] {
-        let (summaries, _) = described_seeds(ctx.config, preset, &ctx.policies[0], None, DESCRIBED_STATES)?;
+        let (mut summaries, _) =
+            described_seeds(ctx.config, preset, &ctx.policies[0], None, DESCRIBED_STATES)?;
+        for s in &mut summaries {
+            let jerks: Vec<f64> = (marl.episodes.iter())
+                .filter(|e| e.seed == s.seed && e.surrounding == Surrounding::Ne)
+                .map(|e| e.metrics.mean_abs_jerk)
+                .collect();
+            s.test_jerk_p99 = (!jerks.is_empty()).then(|| percentile_99(&jerks));
+        }
         let table = markdown(preset, &summaries);
         include_markdown(doc, &table);
         families += &format!("\n{table}");
