@@ -8,8 +8,8 @@
     scripts/results.py grid DIR       the SUMO grid on the bundled networks, from
                                       scripts/traffic_acceptance.sh DIR's acceptance.md
     scripts/results.py zoo DIR        the merge zoo, from scripts/zoo_acceptance.sh DIR
-    scripts/results.py zoo-alone DIR  the merge zoo with the policy alone, SUMO's safe speed
-                                      off, from SPEED_MODE=0 scripts/zoo_acceptance.sh DIR
+    scripts/results.py zoo-shielded DIR  the merge zoo with SUMO's safe speed as a shield, from
+                                      SPEED_MODE=25 scripts/zoo_acceptance.sh DIR
     scripts/results.py study DIR      the penetration study, from `mpgdrive study --out DIR`
                                       (its table, and its plot as docs/results/study.png)
 
@@ -36,13 +36,13 @@ PAPER_INPUTS = ["configs/paper.toml", "policies/mpg/*.json", "policies/mpg/*.saf
 TRAFFIC_INPUTS = ["configs/traffic.toml", "policies/traffic/*/*.json",
                   "policies/traffic/*/*.safetensors"]
 INPUTS = {"paper": PAPER_INPUTS, "traffic": TRAFFIC_INPUTS, "grid": TRAFFIC_INPUTS,
-          "zoo": TRAFFIC_INPUTS, "zoo-alone": TRAFFIC_INPUTS, "study": TRAFFIC_INPUTS}
-FOLDERS = ("grid", "zoo", "zoo-alone", "study")
+          "zoo": TRAFFIC_INPUTS, "zoo-shielded": TRAFFIC_INPUTS, "study": TRAFFIC_INPUTS}
+FOLDERS = ("grid", "zoo", "zoo-shielded", "study")
 TITLES = {"paper": "The paper's study (Tables II and III, claims, scenarios)",
           "traffic": "The traffic policies in their own world",
           "grid": "The traffic policies in SUMO on the bundled networks",
           "zoo": "The traffic policies in SUMO on the merge zoo",
-          "zoo-alone": "The traffic policies in SUMO on the merge zoo, SUMO's safe speed off",
+          "zoo-shielded": "The traffic policies in SUMO on the merge zoo, SUMO's safe speed as a shield",
           "study": "The game against SUMO's drivers, by share of controllable vehicles"}
 README_BEGIN = "<!-- results: docs/results/summary.md -->"
 README_END = "<!-- /results -->"
@@ -149,13 +149,13 @@ def acceptance(kind, folder):
         sys.exit(f"results: {path} does not exist (run scripts/"
                  f"{'traffic' if kind == 'grid' else 'zoo'}_acceptance.sh {folder} first)")
     body = open(path).read()
-    alone = re.search(r"^- merge gate .*SUMO speed mode 0,", body, re.M) is not None
-    if alone != (kind == "zoo-alone"):
-        sys.exit(f"results: {path} was run with SUMO's safe speed {'off' if alone else 'on'}: "
-                 f"it is `scripts/results.py {'zoo-alone' if alone else kind} DIR`'s")
+    shielded = re.search(r"^- merge gate .*SUMO speed mode 0,", body, re.M) is None
+    if shielded != (kind == "zoo-shielded"):
+        sys.exit(f"results: {path} was run with SUMO's safe speed {'on' if shielded else 'off'}: "
+                 f"it is `scripts/results.py {'zoo-shielded' if shielded else 'zoo'} DIR`'s")
     body = re.sub(r"^# .*\n+", "", body, count=1)
     script = "traffic_acceptance.sh" if kind == "grid" else "zoo_acceptance.sh"
-    env = "SPEED_MODE=0 " if alone else ""
+    env = "SPEED_MODE=25 " if shielded else ""
     write(f"{kind}.md", header(kind, f"{env}scripts/{script} DIR && scripts/results.py {kind} DIR")
           + body)
 
@@ -245,12 +245,12 @@ def summary():
         rows.append("| the same, mixed surroundings (every non-human vehicle on the policy) "
                     f"| {per_seed(5)} | `traffic.md` |")
     for kind, what in (("grid", "SUMO, bundled networks"), ("zoo", "SUMO, merge zoo"),
-                       ("zoo-alone", "SUMO, merge zoo")):
+                       ("zoo-shielded", "SUMO, merge zoo")):
         path = os.path.join(RESULTS, f"{kind}.md")
         if os.path.isfile(path):
             speed_mode = cell(r"^- merge gate .*SUMO speed mode (\d+)", open(path).read())
-            what += (" (policy alone: SUMO's safe speed off)" if speed_mode == "0"
-                     else " (shielded: SUMO's safe speed on, cosim's default)")
+            what += (" (the policy alone, cosim's default)" if speed_mode == "0"
+                     else " (shielded: SUMO's safe speed on)")
         held = deployments(kind)
         if held:
             rows.append(f"| {what}: deployments meeting every check against SUMO's drivers "

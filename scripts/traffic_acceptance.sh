@@ -8,8 +8,8 @@
 #   scripts/traffic_acceptance.sh OUT [NET_DIR ...]    (default: both bundled networks)
 #
 # Environment: GATE=true|false (the merge gate as a shield; default as cosim's: off for
-# traffic policies), SPEED_MODE and LANE_CHANGE_MODE (default cosim's 25 and 257; SPEED_MODE=0
-# measures the policy without SUMO's safe speed, 0 and 0 with no SUMO check at all), PLAYER_LANE_CHANGE_MODE (default
+# traffic policies), SPEED_MODE and LANE_CHANGE_MODE (default cosim's 0 and 257: the policy
+# alone; SPEED_MODE=25 adds SUMO's safe speed as a shield, 0 and 0 no SUMO check at all), PLAYER_LANE_CHANGE_MODE (default
 # cosim's 1621: target-lane players keep SUMO's lane changes), CONFIG (default configs/traffic.toml), POLICY (default its shipped set),
 # ENSEMBLE=median|mean (how the policy's seeds combine; default cosim's, the median),
 # SEEDS (default "0 1 2"), SCALES (default "0.8,1.0,1.2"), END (default 900), JOBS (default
@@ -63,7 +63,7 @@ run_one() {
     "$bin" cosim --config "$config" ${POLICY:+--policy "$POLICY"} ${ENSEMBLE:+--ensemble "$ENSEMBLE"} \
         --sumocfg "$cfg" --route-files "$route" \
         --merge "$merge" --controllers "$controllers" --seed "$seed" --end "$end" \
-        ${GATE:+--gate "$GATE"} --speed-mode "${SPEED_MODE:-25}" --lane-change-mode "${LANE_CHANGE_MODE:-257}" \
+        ${GATE:+--gate "$GATE"} --speed-mode "${SPEED_MODE:-0}" --lane-change-mode "${LANE_CHANGE_MODE:-257}" \
         --player-lane-change-mode "${PLAYER_LANE_CHANGE_MODE:-1621}" --no-diagrams --json --out "$folder" >"$folder.json" 2>"$folder.log"
 }
 export -f run_one

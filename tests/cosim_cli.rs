@@ -650,3 +650,27 @@ fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
     // Measured: 14.72 s waiting silently, 9.21 s signalling.
     assert!(time_loss(&signalling) + 3.0 < time_loss(&silent));
 }
+
+#[test]
+fn the_default_speed_mode_follows_what_the_policys_scenes_hold() {
+    // A traffic policy's scenes hold every vehicle in the control zone, so the policy drives
+    // alone (speed mode 0); a Table I game holds nine players, so SUMO's safe speed (25)
+    // guards it against the rest. An explicit --speed-mode wins.
+    let dir = std::env::temp_dir().join(format!("mpgdrive-speed-mode-{}", std::process::id()));
+    let mode = |extra: &[&str], name: &str| {
+        let mut args = vec!["--controllers", "mpg", "--end", "20", "--no-diagrams"];
+        args.extend_from_slice(extra);
+        let (runs, _) = common::cosim_json(&args, Path::new(CFG), &dir.join(name));
+        runs[0]["shields"]["speed_mode"].as_i64().unwrap()
+    };
+    assert_eq!(mode(&[], "traffic"), 0);
+    assert_eq!(
+        mode(
+            &["--config", "configs/paper.toml", "--policy", "policies/mpg"],
+            "table1"
+        ),
+        25
+    );
+    assert_eq!(mode(&["--speed-mode", "25"], "shielded"), 25);
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -132,7 +132,7 @@ fn a_curved_ramp_network_runs_every_controller_with_the_proposed_merge_toml() {
         "conflict point {}",
         merge.conflict_point
     );
-    // cosim's default shields (SUMO's safe speed, lane-change mode 257). With the proposal's
+    // cosim's defaults (the policy alone, lane-change mode 257). With the proposal's
     // merge_from the egos take the first safe gap on the acceleration lane: SUMO seeds 0-4 all
     // had 0 controlled collisions (the previous traffic policies; seed 0 with the current ones). Merging at x_c only (the previous stop's deployment), 0-2 of
     // the 54 egos per run were rear-ended by a human right after merging.

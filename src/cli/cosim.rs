@@ -41,10 +41,14 @@ pub struct CosimArgs {
     /// against --config as it is; the results say which.
     #[arg(long, action = clap::ArgAction::Set, default_value_t = false)]
     gate: bool,
-    /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed towards any leader;
-    /// 0: the policy's speed exactly, as the internal simulator).
-    #[arg(long, default_value_t = 25)]
-    speed_mode: i32,
+    /// SUMO speed mode of controlled vehicles. 0: the policy's speed exactly, as in its training
+    /// world, whose rules `cosim` applies (the default with a traffic policy, whose scenes hold
+    /// every vehicle in the control zone); 25: SUMO's safe speed towards any leader on top, a
+    /// shield (the default with a Table I policy, whose game holds nine players; with traffic
+    /// policies it overrode the game thousands of times a run and cost its egos 10-45% of their
+    /// speed on 30-36 m/s networks, docs/experiments.md).
+    #[arg(long)]
+    speed_mode: Option<i32>,
     /// SUMO lane-change mode of controlled ramp vehicles (257: the merge waits while it would
     /// collide at once, and SUMO's strategic lane changes signal it, so SUMO's drivers make
     /// room; 256: the first only; 0: it happens at the conflict point whatever is there).
@@ -187,7 +191,15 @@ mod with_sumo {
             end: args.end,
             min_gap: facts.min_gap,
             modes: ControlModes {
-                speed: args.speed_mode,
+                speed: args.speed_mode.unwrap_or(
+                    if mpgdrive::policy::observation::Layout::of(&config)
+                        == mpgdrive::policy::observation::Layout::Traffic
+                    {
+                        ControlModes::DEFAULT.speed
+                    } else {
+                        ControlModes::SAFE.speed
+                    },
+                ),
                 lane_change: args.lane_change_mode,
                 player_lane_change: args.player_lane_change_mode,
             },

@@ -17,7 +17,7 @@
 //! # fn run(config: mpgdrive::Config, geometry: MergeGeometry, positions: LanePositions, policy: mpgdrive::policy::PolicyNet)
 //! # -> Result<(), mpgdrive::sumo::SumoError> {
 //! let mut sumo = Sumo::start(Backend::Libsumo, &["sumo".into(), "-c".into(), "x.sumocfg".into()])?;
-//! let mut controller = Controller::new(config, geometry, positions, ControllerKind::Mpg, Some(policy.into()), ControlModes::SAFE);
+//! let mut controller = Controller::new(config, geometry, positions, ControllerKind::Mpg, Some(policy.into()), ControlModes::DEFAULT);
 //! while sumo.min_expected()? > 0 {
 //!     sumo.step()?;
 //!     controller.step(&mut sumo)?;
@@ -37,16 +37,19 @@
 //! acceleration in the metrics is the applied action (SUMO's own for the `sumo` controller).
 //!
 //! Vehicles the controller drives get the SUMO speed and lane-change modes of
-//! [`ControlModes`]: by default speed mode 25 (SUMO's safe speed towards any leader, but not
-//! its acceleration limits: the policy's actions up to g apply) and lane-change mode 257 (a
+//! [`ControlModes`]: for a traffic policy by default speed mode 0 (the policy's speed exactly,
+//! as in its training world; 25, [`ControlModes::SAFE`], adds SUMO's safe speed towards any
+//! leader as a shield, the default for a Table I policy) and lane-change mode 257 (a
 //! requested change waits while it would collide at once, and SUMO's strategic lane changes:
 //! a ramp vehicle that must leave its lane signals, SUMO's drivers make room for it, and SUMO
 //! may move it into a gap its own model accepts; [`ControlModes::lane_change`]).
 //! [`ControlModes::EXACT`] (0 and 0) applies every action and lane change as the internal
-//! simulator does. The games hold one ramp vehicle and target-lane players, so SUMO's safety
-//! checks are what stands between a controlled vehicle and the traffic outside its game
-//! (other ramp vehicles queued ahead, vehicles cutting in from the next lane); the run counts
-//! the steps where SUMO did not apply a commanded speed. An ego whose centre reaches the
+//! simulator does. A traffic policy's scene holds every vehicle in the control zone, so the
+//! projection keeps a driven vehicle's TTC to whatever is ahead of it in its lane (other ramp
+//! vehicles queued ahead, vehicles cutting in from the next lane); a Table I game holds only
+//! its nine players, and there SUMO's safe speed (`--speed-mode 25`) is what stands between a
+//! driven vehicle and the traffic outside its game. The run counts the steps where SUMO did
+//! not apply a commanded speed. An ego whose centre reaches the
 //! conflict point is treated as merged, as in the internal simulator, and told to change to
 //! the target lane next to it: from there on every scene counts it in the target lane, where
 //! the policy was trained to see it, whether SUMO has moved it yet or not, except that the
@@ -120,8 +123,15 @@ pub struct ControlModes {
 }
 
 impl ControlModes {
-    /// The default: SUMO's safe speed, collision-free requested lane changes with SUMO's
-    /// strategic ones for ramp vehicles, and SUMO's own lane changes for target-lane players.
+    /// `cosim`'s default for a traffic policy: the policy's speed exactly (no SUMO shield),
+    /// collision-free requested lane changes with SUMO's strategic ones for ramp vehicles, and
+    /// SUMO's own lane changes for target-lane players.
+    pub const DEFAULT: ControlModes = ControlModes {
+        speed: 0,
+        ..ControlModes::SAFE
+    };
+    /// [`ControlModes::DEFAULT`] with SUMO's safe speed (speed mode 25) as a shield: `cosim`'s
+    /// default for a Table I policy, whose game holds nine players.
     pub const SAFE: ControlModes = ControlModes {
         speed: 25,
         lane_change: 257,

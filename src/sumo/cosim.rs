@@ -467,7 +467,7 @@ pub fn plain_sumo_us_per_step(settings: &CosimSettings) -> Result<f64, CosimErro
 pub struct Shields {
     /// The merge gate held ramp vehicles the policy drives.
     pub merge_gate: bool,
-    /// SUMO speed mode of controlled vehicles (25: SUMO's safe speed; 0: none).
+    /// SUMO speed mode of controlled vehicles (0: none, the default; 25: SUMO's safe speed).
     pub speed_mode: i32,
     /// SUMO lane-change mode of controlled ramp vehicles (257: a merge waits while it would
     /// collide at once, with SUMO's strategic lane changes; 0: none).
