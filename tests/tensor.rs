@@ -94,18 +94,24 @@ fn engines_agree_with_constant_speed_players() {
     assert!(compare(&ungated(), Driver::Idm, Driver::ConstSpeed, true, true) > 0);
 }
 
+/// Checks both engines agree in `order` with constant-speed players (whose bounds bind) and in
+/// merge traffic; returns the ungated configuration in that order.
+fn engines_agree_in(order: mpgdrive::config::ProjectionOrder) -> Config {
+    let mut config = ungated();
+    config.sim.projection_order = order;
+    assert!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true) > 0);
+    let mut traffic = common::traffic();
+    traffic.sim.projection_order = order;
+    traffic_engines_agree(&traffic);
+    config
+}
+
 #[test]
 fn engines_agree_in_the_sequential_projection_order() {
     // Front to back, each leader bound reading the leader's settled speed: the scalar engine
     // settles by lane rank, the tensor engine in passes. Constant-speed players close in on
     // each other, so bounds bind; the returns differ from the simultaneous order's.
-    use mpgdrive::config::ProjectionOrder::Sequential;
-    let mut config = ungated();
-    config.sim.projection_order = Sequential;
-    assert!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true) > 0);
-    let mut traffic = common::traffic();
-    traffic.sim.projection_order = Sequential;
-    traffic_engines_agree(&traffic);
+    let config = engines_agree_in(mpgdrive::config::ProjectionOrder::Sequential);
     let scenes = sample_scenes(&config, 17, 0, 24);
     let opts = RolloutOptions {
         steps: 150,
@@ -129,13 +135,7 @@ fn engines_agree_in_the_shared_projection_order() {
     // neighbour is projected from the actor, the tensor engine from its mask. Constant-speed
     // players close in on each other, so pushes and holds bind; in merge traffic the human
     // drivers are not projected and take no half.
-    use mpgdrive::config::ProjectionOrder::Shared;
-    let mut config = ungated();
-    config.sim.projection_order = Shared;
-    assert!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true) > 0);
-    let mut traffic = common::traffic();
-    traffic.sim.projection_order = Shared;
-    traffic_engines_agree(&traffic);
+    engines_agree_in(mpgdrive::config::ProjectionOrder::Shared);
 }
 
 #[test]

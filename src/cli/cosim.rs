@@ -106,6 +106,7 @@ mod with_sumo {
     use mpgdrive::atomic;
     use mpgdrive::config::Config;
     use mpgdrive::policy::PolicyEnsemble;
+    use mpgdrive::policy::observation::Layout;
     use mpgdrive::render::timespace::{DiagramLayout, timespace_png};
     use mpgdrive::sumo::cosim::{self, ControllerRun, CosimSettings, Launch, Shields, run_controller};
     use mpgdrive::sumo::{ControlModes, ControllerKind, MergeGeometry};
@@ -191,15 +192,9 @@ mod with_sumo {
             end: args.end,
             min_gap: facts.min_gap,
             modes: ControlModes {
-                speed: args.speed_mode.unwrap_or(
-                    if mpgdrive::policy::observation::Layout::of(&config)
-                        == mpgdrive::policy::observation::Layout::Traffic
-                    {
-                        ControlModes::DEFAULT.speed
-                    } else {
-                        ControlModes::SAFE.speed
-                    },
-                ),
+                speed: args
+                    .speed_mode
+                    .unwrap_or(ControlModes::default_for(Layout::of(&config)).speed),
                 lane_change: args.lane_change_mode,
                 player_lane_change: args.player_lane_change_mode,
             },

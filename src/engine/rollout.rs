@@ -245,7 +245,7 @@ fn run_chunk(
             merging.clear();
             merging.resize(n, false);
             let nb = &neighbors[b * n..(b + 1) * n];
-            if rules.sequential {
+            if rules.sequential() {
                 front_to_back(nb, &mut settle_order);
             } else {
                 settle_order.clear();
@@ -271,7 +271,7 @@ fn run_chunk(
                     // The leader was settled before (front to back): its speed after the step.
                     leader_next_v: nb[i]
                         .lane_leader
-                        .filter(|_| rules.sequential)
+                        .filter(|_| rules.sequential())
                         .map(|j| scene.vehicles[j].v + applied[j] * dt),
                     projected: Projected {
                         leader: nb[i].lane_leader.is_some_and(projected),

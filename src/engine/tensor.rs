@@ -304,7 +304,7 @@ pub fn apply_limits(
     feasibility: bool,
     only: Option<&Var>,
 ) -> Var {
-    if !(rules.sequential && feasibility) {
+    if !(rules.sequential() && feasibility) {
         return limits_once(rules, batch, nb, raw, feasibility, only, None);
     }
     let leaders = &nb.index[Which::LaneLeader as usize];
@@ -352,7 +352,7 @@ fn limits_once(
         let follow = nb.get(batch, Which::LaneFollower);
         let next = leader_next.unwrap_or(&lead.v);
         let (lo, hi) = feasible_interval_after(&batch.x, &batch.v, &lead, next, &follow, &rules.projection());
-        let (lo, hi) = if rules.shared {
+        let (lo, hi) = if rules.shared() {
             // A neighbour is projected where it is present and (with `only`) where `only` is 1.
             let projected = |which: Which, n: &Neighbor<Var>| match only {
                 Some(mask) => mask.gather_cols(&nb.index[which as usize]).mul(&n.present),

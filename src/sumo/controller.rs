@@ -137,6 +137,17 @@ impl ControlModes {
         lane_change: 257,
         player_lane_change: SUMO_LANE_CHANGE_MODE,
     };
+    /// `cosim`'s default for a policy of `layout`: [`ControlModes::DEFAULT`] for a traffic
+    /// policy, whose scenes hold every vehicle in the control zone; [`ControlModes::SAFE`] for
+    /// a Table I policy, whose game holds nine players.
+    pub fn default_for(layout: Layout) -> ControlModes {
+        if layout == Layout::Traffic {
+            ControlModes::DEFAULT
+        } else {
+            ControlModes::SAFE
+        }
+    }
+
     /// No SUMO checks: every action and lane change applies as in the internal simulator.
     pub const EXACT: ControlModes = ControlModes {
         speed: 0,
@@ -1008,7 +1019,7 @@ impl Controller {
         // Front to back in the sequential projection order: each leader bound reads a
         // controlled leader's settled speed (a SUMO-driven one keeps its current speed).
         let mut order: Vec<usize> = (0..rows.len()).collect();
-        if self.rules.sequential {
+        if self.rules.sequential() {
             order.sort_by(|&p, &q| cars[rows[q].2].x.total_cmp(&cars[rows[p].2].x));
         }
         let mut next_v: HashMap<usize, f64> = HashMap::new();
@@ -1098,7 +1109,7 @@ impl Controller {
                         a = a.min(stop_bound(&car.x, &car.v, &rules.gate));
                     }
                 }
-                if self.rules.sequential {
+                if self.rules.sequential() {
                     next_v.insert(j, car.v + a * rules.dt);
                 }
                 if let Some((_, d)) = car.signal.filter(|&(state, d)| is_red(state) && d >= 0.0) {

@@ -5,7 +5,7 @@
 //! holds any network's or dataset's geometry ([`Config::at_conflict_point`]), then passed down
 //! to every step of the scalar rollout, the NGSIM replay and the SUMO co-simulation.
 
-use crate::config::Config;
+use crate::config::{Config, ProjectionOrder};
 use crate::world::dynamics::Axles;
 use crate::world::geometry::Road;
 use crate::world::merge_gate::{GateRules, lane_change_is_safe};
@@ -35,12 +35,8 @@ pub struct WorldRules {
     pub tau_s: f64,
     /// Time gap of the feasibility projection (s; `sim.time_headway`).
     pub time_headway: f64,
-    /// Whether the feasibility projection settles vehicles front to back
-    /// (`sim.projection_order = "sequential"`), each leader bound reading the leader's next speed.
-    pub sequential: bool,
-    /// Whether a projected leader and follower share their pair's correction
-    /// (`sim.projection_order = "shared"`, [`crate::world::safety::share_bounds`]).
-    pub shared: bool,
+    /// The order in which the feasibility projection settles vehicles (`sim.projection_order`).
+    pub order: ProjectionOrder,
     /// Whether the merge gate holds ramp vehicles when the feasibility rules are on.
     pub merge_gate: bool,
     /// The merge gate's parameters (clearance, braking, horizon).
@@ -51,6 +47,18 @@ pub struct WorldRules {
 }
 
 impl WorldRules {
+    /// Whether the projection settles vehicles front to back, each leader bound reading the
+    /// leader's next speed (`sim.projection_order = "sequential"`).
+    pub fn sequential(&self) -> bool {
+        self.order == ProjectionOrder::Sequential
+    }
+
+    /// Whether a projected leader and follower share their pair's correction
+    /// (`sim.projection_order = "shared"`, [`crate::world::safety::share_bounds`]).
+    pub fn shared(&self) -> bool {
+        self.order == ProjectionOrder::Shared
+    }
+
     /// The rules of a (validated) configuration.
     pub fn new(config: &Config) -> Self {
         let veh = &config.vehicle;
@@ -68,8 +76,7 @@ impl WorldRules {
             v_max: veh.v_max,
             tau_s: config.sim.tau_s,
             time_headway: config.sim.time_headway,
-            sequential: config.sim.projection_order == crate::config::ProjectionOrder::Sequential,
-            shared: config.sim.projection_order == crate::config::ProjectionOrder::Shared,
+            order: config.sim.projection_order,
             merge_gate: config.sim.merge_gate,
             gate: GateRules::new(config),
             players_make_room: config.sim.players_make_room,

@@ -113,7 +113,7 @@ pub fn applied_action_with(
         let lead_next = settled.leader_next_v.unwrap_or(lead.v);
         let (mut lo, mut hi) =
             feasible_interval_after(&me.x, &me.v, &lead, &lead_next, &follow, &rules.projection());
-        if rules.shared {
+        if rules.shared() {
             let flag = |b: bool| f64::from(u8::from(b));
             (lo, hi) = share_bounds(
                 &lo,
