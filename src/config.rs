@@ -204,6 +204,13 @@ pub struct SimConfig {
     /// Largest braking a merge may ask of the new follower or of the merging vehicle (m/s^2).
     #[serde(default = "default_b_safe")]
     pub b_safe: f64,
+    /// Braking (m/s^2) of the stopping bound with which the entry rule holds a ramp vehicle at
+    /// its lane's end ([`crate::world::merge_gate::lane_end_bound`]): the vehicle may drive on
+    /// as long as it can still stop there braking this hard. `vehicle.max_accel` (`g`, the
+    /// latest stop the road allows) when absent; `b_safe` stops it as a human driver would
+    /// (docs/experiments.md, "Where a held ramp vehicle stops").
+    #[serde(default)]
+    pub lane_end_brake: Option<f64>,
     /// Reaction time of a human follower in the entry rule (`scenario.entry = "gap"`, s):
     /// the follower goes on at its speed this long before it brakes at `b_safe`.
     #[serde(default = "default_reaction_time")]
@@ -582,6 +589,13 @@ impl Config {
         non_negative("sim.time_headway", m.time_headway)?;
         positive("sim.b_safe", m.b_safe)?;
         non_negative("sim.reaction_time", m.reaction_time)?;
+        if let Some(b) = m.lane_end_brake {
+            check(
+                "sim.lane_end_brake",
+                b > 0.0 && b <= v.max_accel,
+                format!("{b} must lie in (0, vehicle.max_accel = {}]", v.max_accel),
+            )?;
+        }
         non_negative("reward.v_desired", r.v_desired)?;
         positive("reward.v_c", r.v_c)?;
         positive("reward.epsilon", r.epsilon)?;

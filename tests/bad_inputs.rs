@@ -164,6 +164,16 @@ fn cases() -> Vec<Case> {
             smoke().replacen("safety_gap = 2.0", "safety_gap = 2.0\ntime_headway = nan", 1),
             "sim.time_headway",
         ),
+        demo(
+            "NaN lane-end braking",
+            smoke().replacen("b_safe = 4.0", "b_safe = 4.0\nlane_end_brake = nan", 1),
+            "sim.lane_end_brake",
+        ),
+        demo(
+            "lane-end braking beyond g",
+            smoke().replacen("b_safe = 4.0", "b_safe = 4.0\nlane_end_brake = 12.0", 1),
+            "sim.lane_end_brake",
+        ),
         demo("inverted speed limits", smoke_with("v_max", "-1.0"), "v_max"),
         demo(
             "inverted headway range",

@@ -5,7 +5,7 @@ mod common;
 use approx::assert_abs_diff_eq;
 use common::{car, scene};
 use mpgdrive::world::merge_gate::{
-    GateRules, STOP_MARGIN, entry_is_safe, gate_holds, lane_change_is_safe, stop_bound,
+    GateRules, STOP_MARGIN, entry_is_safe, gate_holds, lane_change_is_safe, lane_end_bound, stop_bound,
 };
 use mpgdrive::world::state::Vehicle;
 
@@ -18,6 +18,7 @@ fn rules() -> GateRules {
         b_safe: 4.0,
         horizon: 3.0,
         brake: 9.81,
+        lane_end_brake: 9.81,
         dt: 0.1,
         reaction_time: None,
     }
@@ -140,4 +141,35 @@ fn stop_bound_worked_case_stops_before_the_line() {
     assert!(x < 180.0 - STOP_MARGIN, "stopped at {x}");
     // Already at the line after this step: the bound is a full stop, -v / dt.
     assert_abs_diff_eq!(stop_bound(&179.9, &0.5, &ten), -5.0, epsilon = 1e-9);
+}
+
+#[test]
+fn a_vehicle_held_at_the_lane_end_stops_there_braking_at_the_lane_end_brake() {
+    // At 160 m and 12 m/s it is at 161.2 m after the step, 18.7 m before the stop line at
+    // 179.9 m. At 4 m/s^2: v' <= -0.4 + sqrt(0.16 + 2 * 4 * 18.7) = 11.8377 m/s, so
+    // a <= (11.8377 - 12) / 0.1 = -1.623 m/s^2; at g (the default) the bound does not bind yet
+    // (v' <= -0.981 + sqrt(0.962 + 2 * 9.81 * 18.7) = 18.17 m/s, a <= 61.7 m/s^2).
+    let gentle = GateRules {
+        lane_end_brake: 4.0,
+        ..rules()
+    };
+    let expected = (-0.4 + (0.16f64 + 8.0 * 18.7).sqrt() - 12.0) / 0.1;
+    assert_abs_diff_eq!(lane_end_bound(&160.0, &12.0, &gentle), expected, epsilon = 1e-9);
+    assert_abs_diff_eq!(expected, -1.623, epsilon = 1e-3);
+    let at_g = (-0.981 + (0.981f64.powi(2) + 2.0 * 9.81 * 18.7).sqrt() - 12.0) / 0.1;
+    assert_abs_diff_eq!(lane_end_bound(&160.0, &12.0, &rules()), at_g, epsilon = 1e-9);
+    assert_abs_diff_eq!(at_g, 61.7, epsilon = 0.1);
+    // Driven at its bound step by step (eq. 1), it never brakes harder than b_safe and stops
+    // short of the line.
+    let (mut x, mut v) = (160.0, 12.0);
+    while v > 0.0 {
+        let a = lane_end_bound(&x, &v, &gentle).min(0.0);
+        assert!(a >= -4.0 - 1e-9, "braked at {a} m/s^2 at {x} m");
+        x += v * 0.1;
+        v = (v + a * 0.1).max(0.0);
+    }
+    assert!(x < 180.0 - STOP_MARGIN + 1e-9, "stopped at {x}");
+    // Too fast to stop at b_safe (16 m/s, 18.7 m before the line after the step): it brakes
+    // harder than b_safe, as it must.
+    assert!(lane_end_bound(&158.4, &16.0, &gentle) < -4.0);
 }

@@ -16,7 +16,7 @@ use crate::world::drivers::{make_room_bound, makes_room, player_makes_room_for, 
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::Road;
 use crate::world::idm::{idm_accel, idm_v0};
-use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
+use crate::world::merge_gate::{gate_holds, lane_end_bound, lane_end_holds, stop_bound};
 use crate::world::neighbors::find_neighbors;
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible, share_bounds};
@@ -425,32 +425,28 @@ fn make_room(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
 /// The merge gate on `a`: ramp players it holds get `min(a, stop bound)` (every player with
 /// `sim.merge_gate`, else the human drivers only).
 fn merge_gate(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
-    held_at_stop_bound(rules, batch, a, |s, i| {
+    let bound = stop_bound(&batch.x, &batch.v, &rules.gate);
+    held_at(batch, a, &bound, |s, i| {
         (rules.merge_gate || s.is_human(i)) && gate_holds(s, i, &rules.gate)
     })
 }
 
 /// The entry rule's lane end on `a`: ramp players it holds
-/// ([`crate::world::merge_gate::lane_end_holds`]) get `min(a, stop bound)`, every player.
+/// ([`crate::world::merge_gate::lane_end_holds`]) get `min(a, lane end bound)`, every player.
 fn hold_at_lane_end(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
-    held_at_stop_bound(rules, batch, a, |s, i| lane_end_holds(s, i, &rules.gate))
+    let bound = lane_end_bound(&batch.x, &batch.v, &rules.gate);
+    held_at(batch, a, &bound, |s, i| lane_end_holds(s, i, &rules.gate))
 }
 
-/// `min(a, stop bound)` for the players `holds` names in their scene, `a` for the others.
-fn held_at_stop_bound(
-    rules: &WorldRules,
-    batch: &TensorBatch,
-    a: &Var,
-    holds: impl Fn(&Scene, usize) -> bool,
-) -> Var {
+/// `min(a, bound)` for the players `holds` names in their scene, `a` for the others.
+fn held_at(batch: &TensorBatch, a: &Var, bound: &Var, holds: impl Fn(&Scene, usize) -> bool) -> Var {
     let held: Vec<f64> = batch
         .scenes()
         .iter()
         .flat_map(|s| (0..s.len()).map(|i| f64::from(u8::from(holds(s, i)))))
         .collect();
     let held = Var::constant(held, batch.x.rows(), batch.x.cols());
-    let bound = stop_bound(&batch.x, &batch.v, &rules.gate);
-    Var::select(&held, &a.min(&bound), a)
+    Var::select(&held, &a.min(bound), a)
 }
 
 /// The unordered player pairs `i < j` of `n` players: the pair terms are symmetric

@@ -84,7 +84,7 @@ use crate::sumo::kind::ControllerKind;
 use crate::sumo::positions::{LanePositions, MergeForm};
 use crate::sumo::profile::SpeedBands;
 use crate::sumo::{Sumo, SumoError};
-use crate::world::merge_gate::{gate_holds, lane_change_is_safe, stop_bound};
+use crate::world::merge_gate::{gate_holds, lane_change_is_safe, lane_end_bound, stop_bound};
 use crate::world::neighbors::{Neighbors, find_neighbors, player_slots};
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval};
@@ -1195,7 +1195,7 @@ impl Controller {
     /// (none elsewhere): it crosses the stop line only into a gap the merge gate's entry check
     /// finds safe ([`gate_holds`]: the new follower absorbs it braking at `sim.b_safe` at most,
     /// and it its new leader); until then the largest action is the one that still stops its
-    /// front at the line ([`stop_bound`]). SUMO's drivers wait at the line the same way: a
+    /// front at the line ([`lane_end_bound`], as at an acceleration lane's end). SUMO's drivers wait at the line the same way: a
     /// minor link yields. Like the acceleration lane's change, this is the world's rule, not a
     /// shield: it applies with or without `--gate` and whatever SUMO's speed mode.
     /// Under the entry rule (`scenario.entry = "gap"`) the check is the entry rule's, a human
@@ -1213,7 +1213,7 @@ impl Controller {
         let mut line = rules.gate;
         line.conflict_point = self.lane_end? - 0.5 * rules.length;
         let lane = ego_and_target_lane(cars, j, self.config.scenario.lane_width);
-        gate_holds(&lane, 0, &line).then(|| stop_bound(&car.x, &car.v, &line))
+        gate_holds(&lane, 0, &line).then(|| lane_end_bound(&car.x, &car.v, &line))
     }
 
     /// Whether the MPG policy drives this player. `"all"`: every player, wherever it is (the
@@ -1425,6 +1425,7 @@ mod tests {
             b_safe: 4.0,
             horizon: 3.0,
             brake: 9.81,
+            lane_end_brake: 9.81,
             dt: 0.1,
             reaction_time: None,
         };

@@ -49,7 +49,13 @@
 //! (eq. 1 moves `x` with the current speed) with speed `v' = v + a dt`; from there it stops
 //! before `x_s = x_c - 0.1 m` braking at `b` when `v'^2 / (2 b) + v' dt <= x_s - x'`, that is
 //! `v' <= -b dt + sqrt((b dt)^2 + 2 b (x_s - x'))`. The bound on `a` follows; the applied
-//! action is `min(a, bound)`, then clipped to `[-g, g]` as every action is. A vehicle whose
+//! action is `min(a, bound)`, then clipped to `[-g, g]` as every action is. The merge gate
+//! brakes at `b = g`, and so does the entry rule's lane end unless `sim.lane_end_brake` says
+//! otherwise ([`lane_end_bound`]): at `g` a held vehicle may run on to the last metres, and
+//! SUMO's driver behind one that did closed in at a time to collision below 1.5 s
+//! (`i80_merge`, the game at 30% of the vehicles, demand 1.2); at `b_safe` it stops as a human
+//! driver does, but the shipped policies then entered slowly and more often in SUMO
+//! (docs/experiments.md, "Where a held ramp vehicle stops"). A vehicle whose
 //! bound is below `-g` can no longer stop: it is committed, and the gate lets it go
 //! ([`gate_holds`]), because braking would only bring it in slower in front of the same
 //! follower. The decision
@@ -76,6 +82,9 @@ pub struct GateRules {
     pub horizon: f64,
     /// Hardest braking the stopping bound may use (m/s^2): the action bound `g`.
     pub brake: f64,
+    /// Braking of the entry rule's stop at the lane's end ([`lane_end_bound`], m/s^2):
+    /// `sim.lane_end_brake`, `brake` when unset.
+    pub lane_end_brake: f64,
     /// Time step (s).
     pub dt: f64,
     /// With the entry rule (`scenario.entry = "gap"`): the human follower's reaction time
@@ -93,6 +102,7 @@ impl GateRules {
             b_safe: config.sim.b_safe,
             horizon: config.sim.tau_s,
             brake: config.vehicle.max_accel,
+            lane_end_brake: config.sim.lane_end_brake.unwrap_or(config.vehicle.max_accel),
             dt: config.sim.dt,
             reaction_time: (config.scenario.entry == Entry::Gap).then_some(config.sim.reaction_time),
         }
@@ -176,10 +186,26 @@ pub fn secure_gap(v_back: f64, v_front: f64, t_r: f64, b: f64) -> f64 {
 
 /// Whether the ramp's end holds ramp vehicle `i` of `scene` under the entry rule
 /// (`scenario.entry = "gap"`, module docs): it is on the ramp and may not enter the target
-/// lane now ([`lane_change_is_safe`]). Held, its action is at most [`stop_bound`]: the lane
-/// ends there, for the policy as for a human driver.
+/// lane now ([`lane_change_is_safe`]). Held, its action is at most [`lane_end_bound`]: the
+/// lane ends there, for the policy as for a human driver.
 pub fn lane_end_holds(scene: &Scene, i: usize, rules: &GateRules) -> bool {
     rules.reaction_time.is_some() && scene.vehicles[i].on_ramp && !lane_change_is_safe(scene, i, rules)
+}
+
+/// The entry rule's bound on a ramp vehicle the ramp's end holds ([`lane_end_holds`]): the
+/// largest action that still stops it [`STOP_MARGIN`] before the end braking at
+/// `rules.lane_end_brake` (`sim.lane_end_brake`; `g` by default, the latest stop the road
+/// allows), and harder (up to `g`, the action's own bound) only when it must (module docs,
+/// "Stopping bound").
+pub fn lane_end_bound<T: Num>(x: &T, v: &T, rules: &GateRules) -> T {
+    stop_bound(
+        x,
+        v,
+        &GateRules {
+            brake: rules.lane_end_brake,
+            ..*rules
+        },
+    )
 }
 
 /// The largest action that leaves a vehicle at `(x, v)` able to stop [`STOP_MARGIN`] before

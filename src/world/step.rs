@@ -5,7 +5,7 @@
 use crate::world::drivers::{make_room_bound, makes_room, player_makes_room_for};
 use crate::world::dynamics::{Kinematics, zero_steering_step};
 use crate::world::geometry::{Footprint, boxes_overlap};
-use crate::world::merge_gate::{gate_holds, lane_end_holds, stop_bound};
+use crate::world::merge_gate::{gate_holds, lane_end_bound, lane_end_holds, stop_bound};
 use crate::world::neighbors::Neighbors;
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, clip_action, feasible_interval_after, project_feasible, share_bounds};
@@ -140,7 +140,7 @@ pub fn applied_action_with(
         .held
         .unwrap_or_else(|| lane_end_holds(scene, i, &rules.gate))
     {
-        a = a.min(stop_bound(&me.x, &me.v, &rules.gate));
+        a = a.min(lane_end_bound(&me.x, &me.v, &rules.gate));
     }
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
 }
