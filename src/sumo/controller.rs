@@ -1195,8 +1195,8 @@ impl Controller {
     /// (none elsewhere): it crosses the stop line only into a gap the merge gate's entry check
     /// finds safe ([`gate_holds`]: the new follower absorbs it braking at `sim.b_safe` at most,
     /// and it its new leader); until then the largest action is the one that still stops its
-    /// front at the line ([`lane_end_bound`], as at an acceleration lane's end). SUMO's drivers wait at the line the same way: a
-    /// minor link yields. Like the acceleration lane's change, this is the world's rule, not a
+    /// front at the line ([`lane_end_bound`], as at an acceleration lane's end). SUMO's
+    /// drivers wait at the line the same way: a minor link yields. Like the acceleration lane's change, this is the world's rule, not a
     /// shield: it applies with or without `--gate` and whatever SUMO's speed mode.
     /// Under the entry rule (`scenario.entry = "gap"`) the check is the entry rule's, a human
     /// follower's secure gap at the crossing, and it replaces the acceleration lane's check of

@@ -54,7 +54,7 @@
 //! otherwise ([`lane_end_bound`]): at `g` a held vehicle may run on to the last metres, and
 //! SUMO's driver behind one that did closed in at a time to collision below 1.5 s
 //! (`i80_merge`, the game at 30% of the vehicles, demand 1.2); at `b_safe` it stops as a human
-//! driver does, but the shipped policies then entered slowly and more often in SUMO
+//! driver does, but egos then entered slower, and more of them in an SSM conflict, in SUMO
 //! (docs/experiments.md, "Where a held ramp vehicle stops"). A vehicle whose
 //! bound is below `-g` can no longer stop: it is committed, and the gate lets it go
 //! ([`gate_holds`]), because braking would only bring it in slower in front of the same
