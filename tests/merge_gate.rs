@@ -159,7 +159,7 @@ fn a_vehicle_held_at_the_lane_end_stops_there_braking_at_the_lane_end_brake() {
     let at_g = (-0.981 + (0.981f64.powi(2) + 2.0 * 9.81 * 18.7).sqrt() - 12.0) / 0.1;
     assert_abs_diff_eq!(lane_end_bound(&160.0, &12.0, &rules()), at_g, epsilon = 1e-9);
     assert_abs_diff_eq!(at_g, 61.99, epsilon = 0.01);
-    // Driven at its bound step by step (eq. 1), it never brakes harder than b_safe and stops
+    // Driven at its bound step by step (eq. 1), it never brakes harder than 4 m/s^2 and stops
     // short of the line.
     let (mut x, mut v) = (160.0, 12.0);
     while v > 0.0 {
@@ -169,7 +169,7 @@ fn a_vehicle_held_at_the_lane_end_stops_there_braking_at_the_lane_end_brake() {
         v = (v + a * 0.1).max(0.0);
     }
     assert!(x < 180.0 - STOP_MARGIN + 1e-9, "stopped at {x}");
-    // Too fast to stop at b_safe (16 m/s, 18.7 m before the line after the step): it brakes
-    // harder than b_safe, as it must.
+    // Too fast to stop at 4 m/s^2 (16 m/s, 19.9 m before the line after the step, where it
+    // needs 32 m): it brakes harder, as it must.
     assert!(lane_end_bound(&158.4, &16.0, &gentle) < -4.0);
 }
