@@ -383,7 +383,7 @@ fn cases() -> Vec<Case> {
         ),
         cosim_merge(
             "control zone after the conflict point",
-            merge_with("control_from = 40.0", "control_from = 200.0"),
+            merge_with("control_from = 80.0", "control_from = 200.0"),
             "control_from",
         ),
         cosim_merge(

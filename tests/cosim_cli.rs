@@ -90,13 +90,14 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
             &[0, 1, 2, 3, 4]
         };
         assert_eq!(r["policy_seeds"], serde_json::json!(seeds), "{}", r["controller"]);
-        // The speed profile covers the control zone (picked up 140 m before x_c, released
-        // 50 m past it) in 20 m bands without a hole, and its step-weighted mean lies within
-        // the finished egos' own mean speeds.
+        // The speed profile covers the control zone in 20 m bands without a hole (picked up
+        // at 80 m, 117.5 m before the world's x_c: the ramp's end at 200 m less half a length;
+        // released 50 m past it), and its step-weighted mean lies within the finished egos'
+        // own mean speeds.
         let bands = r["speed_by_position"].as_array().unwrap();
         let num = |b: &serde_json::Value, k: &str| b[k].as_f64().unwrap();
         assert!(!bands.is_empty(), "{r}");
-        assert_eq!(num(&bands[0], "from"), -140.0, "{}", r["controller"]);
+        assert_eq!(num(&bands[0], "from"), -120.0, "{}", r["controller"]);
         assert!(num(bands.last().unwrap(), "to") <= 60.0);
         for pair in bands.windows(2) {
             assert_eq!(num(&pair[0], "to"), num(&pair[1], "from"));
@@ -124,9 +125,9 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
         // The target lane's profile covers the same zone, whoever drives: from the pick-up
         // point's band to the release point's ([40, 60)), at speeds a car can have.
         let lane = r["lane_speed_by_position"].as_array().unwrap();
-        assert_eq!(num(&lane[0], "from"), -140.0, "{}", r["controller"]);
+        assert_eq!(num(&lane[0], "from"), -120.0, "{}", r["controller"]);
         assert_eq!(num(lane.last().unwrap(), "to"), 60.0, "{}", r["controller"]);
-        assert_eq!(lane.len(), 10);
+        assert_eq!(lane.len(), 9);
         assert!(
             lane.iter()
                 .all(|b| (0.0..=30.0).contains(&num(b, "mean_speed")) && num(b, "steps") > 0.0)
@@ -135,7 +136,7 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
     let md = std::fs::read_to_string(out_dir.join("cosim.md")).unwrap();
     // Two tables: the egos' and the target lane's.
     let header =
-        "| Distance past the conflict point (m) | mpg | sarl | sumo |\n|---|---|---|---|\n| -140 to -120 |";
+        "| Distance past the conflict point (m) | mpg | sarl | sumo |\n|---|---|---|---|\n| -120 to -100 |";
     assert_eq!(md.matches(header).count(), 2, "{md}");
     for file in [
         "cosim.md",

@@ -6,7 +6,7 @@ mod common;
 use common::{bin, fresh_dir};
 use mpgdrive::sumo::MergeGeometry;
 use mpgdrive::sumo::inputs::check_geometry;
-use mpgdrive::sumo::inspect::{BEFORE_END, LANE_MARGIN, find_merges, proposal};
+use mpgdrive::sumo::inspect::{BEFORE_END, LANE_MARGIN, PICK_UP, find_merges, proposal};
 use std::path::Path;
 
 #[test]
@@ -49,9 +49,9 @@ fn the_bundled_merges_are_found_and_the_proposals_fit_their_networks() {
         std::fs::write(&path, proposal(m, &net)).unwrap();
         let proposed = MergeGeometry::load(&path).unwrap();
         assert!((proposed.conflict_point - (lane_end - BEFORE_END)).abs() < 1e-9);
-        // 120 m before x_c, or 10 m before the acceleration lane when that is earlier (the
-        // curved network's 114.5 m lane).
-        let control_from = (lane_end - BEFORE_END - 120.0).min(m.lane_start - LANE_MARGIN);
+        // 120 m before the lane's end, or 10 m before the acceleration lane when that is
+        // earlier (the curved network's 114.5 m lane).
+        let control_from = (lane_end - PICK_UP).min(m.lane_start - LANE_MARGIN);
         assert!(
             (proposed.control_from - control_from).abs() < 0.06,
             "{}",

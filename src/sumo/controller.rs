@@ -352,9 +352,11 @@ fn sumo_step_reach(config: &Config) -> f64 {
 
 impl Controller {
     /// A controller; `policy` is required for `mpg` and `sarl`. Every rule (observation,
-    /// feasibility projection, merge gate, release) uses the network's conflict point, from
-    /// `geometry`, not the one of `config`'s internal world: the observation reads distances
-    /// to it, so a policy deploys at any conflict point. Vehicles are placed along the lanes
+    /// feasibility projection, merge gate, release) uses the network's conflict point, not the
+    /// one of `config`'s internal world: the observation reads distances to it, so a policy
+    /// deploys at any conflict point. That is `geometry`'s, or under the entry rule
+    /// (`scenario.entry = "gap"`) the end of the ramp lanes, where the training's ramp ends
+    /// too; the speed bands of the report count from it. Vehicles are placed along the lanes
     /// by `positions` ([`crate::sumo::inputs::check_geometry`] gives them).
     pub fn new(
         config: Config,
@@ -379,12 +381,16 @@ impl Controller {
             .last()
             .and_then(|lane| positions.span(lane))
             .map(|(_, end)| end);
-        // Under the entry rule the world's ramp ends where the network's does: a centre half a
-        // length before the last ramp lane's end (an acceleration lane's, or a stop line).
+        // Under the entry rule the world's ramp ends where the network's does (a centre half a
+        // length before the last ramp lane's end: an acceleration lane's, or a stop line), and
+        // there is its conflict point, as in training, whose ramp ends at x_c: the policy reads
+        // `x_c - x` as the room left before it must have entered. With x_c where merge.toml puts
+        // it (20 m before an acceleration lane's end) the egos braked for a stop 17.5 m short
+        // of the real one (docs/experiments.md, "Where the policy's ramp ends").
         let mut config = config;
         let mut rules = rules;
         if let (Entry::Gap, Some(end)) = (config.scenario.entry, lane_end) {
-            config.scenario.accel_lane = end - 0.5 * config.vehicle.length - config.scenario.conflict_point;
+            config = config.at_conflict_point(end - 0.5 * config.vehicle.length);
             // The merge zone, where players make room for a ramp vehicle, starts where the
             // egos may enter (`merge_from`), as the training's starts where its ramp vehicles may.
             if let Some(from) = geometry.merge_from {
@@ -507,13 +513,13 @@ impl Controller {
                 ego.end = Some(time);
             }
         }
-        let g = &self.geometry;
-        let zone = g.control_from..=g.conflict_point + g.release_after;
+        let x_c = self.rules.conflict_point();
+        let zone = self.geometry.control_from..=x_c + self.geometry.release_after;
         for c in cars
             .iter()
             .filter(|c| c.ramp_lane.is_none() && zone.contains(&c.x))
         {
-            self.lane_speed.record(c.x - g.conflict_point, c.v);
+            self.lane_speed.record(c.x - x_c, c.v);
         }
         let games = self.form_games(sumo, &cars, time)?;
         let commands = self.decide(&cars, &games);
@@ -996,7 +1002,7 @@ impl Controller {
                     .update_vehicle(scene, game.ego, ego_car.accel, self.rules.dt);
                 record
                     .speed_bands
-                    .record(ego_car.x - self.geometry.conflict_point, ego_car.v);
+                    .record(ego_car.x - self.rules.conflict_point(), ego_car.v);
             }
             if self.kind != ControllerKind::Sumo {
                 for (m, &(j, slot)) in game.members.iter().enumerate() {
@@ -1775,9 +1781,11 @@ mod tests {
 
     #[test]
     fn players_make_room_from_where_the_egos_may_enter() {
-        // single_lane_merge: x_c 180 m, merge_from 110 m. Under the entry rule the merge zone
-        // (where players make room for a ramp vehicle) starts at merge_from, 70 m before x_c,
-        // not at the training's 40 m; a merge_from later than that keeps the 40 m.
+        // single_lane_merge: merge.toml's x_c 180 m, merge_from 110 m, the acceleration lane
+        // ends at 200 m. Under the entry rule the world's x_c is the ramp's end, a centre half a
+        // length (2.5 m) before it: 197.5 m, as the training's ramp ends at x_c. The merge zone
+        // (where players make room for a ramp vehicle) starts at merge_from, 87.5 m before it,
+        // not at the training's 40 m; a merge_from later than that keeps the 40 m (157.5 m on).
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         let config = Config::load(&root.join("configs/traffic.toml")).unwrap();
         let net = root.join("sumo_nets/single_lane_merge");
@@ -1802,14 +1810,16 @@ mod tests {
                 None,
                 ControlModes::SAFE,
             );
+            assert_eq!(c.rules.conflict_point(), 197.5);
             (
                 c.rules.road.in_merge_zone(109.0),
                 c.rules.road.in_merge_zone(110.0),
-                c.rules.road.in_merge_zone(140.0),
+                c.rules.road.in_merge_zone(157.0),
+                c.rules.road.in_merge_zone(158.0),
             )
         };
-        assert_eq!(zone(110.0), (false, true, true));
-        assert_eq!(zone(160.0), (false, false, true));
+        assert_eq!(zone(110.0), (false, true, true, true));
+        assert_eq!(zone(160.0), (false, false, false, true));
     }
 
     #[test]

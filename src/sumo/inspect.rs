@@ -247,12 +247,17 @@ pub const BEFORE_END: f64 = 20.0;
 /// from this far into it (m).
 pub const LANE_MARGIN: f64 = 10.0;
 
+/// Egos are picked up this far before the end of the ramp lanes (m): where a traffic policy's
+/// conflict point is in `cosim` (its training's ramp ends at `x_c`), and as far as its
+/// training starts them (`sampling.ego_position`, 40-120 m before `x_c`).
+pub const PICK_UP: f64 = 120.0;
+
 /// A commented `merge.toml` for `merge` of the network `net`. On an acceleration lane: the
-/// conflict point [`BEFORE_END`] before its end, egos picked up 120 m before it, or
+/// conflict point [`BEFORE_END`] before its end, egos picked up [`PICK_UP`] before the end, or
 /// [`LANE_MARGIN`] before the acceleration lane if that is earlier, and merging from
 /// [`LANE_MARGIN`] into it. At a junction: the conflict point at the stop line (the end of the
-/// ramp lane, rounded down to 0.1 m so that it stays on the lane), egos picked up 120 m before
-/// it, no `merge_from`.
+/// ramp lane, rounded down to 0.1 m so that it stays on the lane), egos picked up [`PICK_UP`]
+/// before it, no `merge_from`.
 pub fn proposal(merge: &Merge, net: &Path) -> String {
     header(net) + &keys_of(merge)
 }
@@ -289,7 +294,7 @@ fn keys_of(merge: &Merge) -> String {
     };
     // Before the acceleration lane: SUMO's drivers change lanes as soon as they reach it, and
     // a ramp vehicle that changed before pick-up is never an ego.
-    let mut control_from = (x_c - 120.0).max(merge.ramp_start);
+    let mut control_from = (merge.lane_end - PICK_UP).max(merge.ramp_start);
     if merge.form == MergeForm::AccelerationLane {
         control_from = control_from
             .min(merge.lane_start - LANE_MARGIN)
@@ -300,9 +305,9 @@ fn keys_of(merge: &Merge) -> String {
     format!(
         "target_start = 0.0               # the position of the start of target_lanes' first lane\n\
          conflict_point = {x_c:.1}          # {where_}\n\
-         control_from = {control_from:.1}            # egos are picked up here: 120 m before x_c (training starts them 40-120 m\n\
-         #                                  before), or 10 m before an acceleration lane if that is earlier, and not\n\
-         #                                  before the ramp begins\n\
+         control_from = {control_from:.1}            # egos are picked up here: 120 m before the ramp's end, where a traffic\n\
+         #                                  policy's x_c is (training starts them 40-120 m before x_c), or 10 m before an\n\
+         #                                  acceleration lane if that is earlier, and not before the ramp begins\n\
          release_after = 50.0             # a merged ego is released 50 m past x_c\n\
          {merge_from}\
          ramp_lanes = {ramp}   # in driving order, the lane that ends last\n\
