@@ -185,6 +185,7 @@ fn sumo_and_the_internal_simulator_agree_on_the_ego_trajectory() {
     let config = paper();
     let mut geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
     geometry.merge_from = None; // the internal simulator's merge, at x_c
+    geometry.control_from = 40.0; // every sampled ego (40-120 m before x_c) starts under control
     let release = geometry.conflict_point + geometry.release_after;
     let steps = 250; // 25 s
     for scene in sample_scenes(&config, purpose_seed(0, Purpose::Test), 0, 3) {
@@ -234,11 +235,12 @@ fn sumo_and_the_internal_traffic_world_agree_on_a_multi_ego_episode() {
     let mut geometry = MergeGeometry::load(&Path::new(NET).join("merge.toml")).unwrap();
     geometry.control_from = -1000.0;
     geometry.release_after = 1000.0;
+    // Under the entry rule the world's ramp ends, and its conflict point is, where the
+    // network's acceleration lane ends (x = 200 m), a centre half a length before it: the
+    // controller puts it there whatever merge.toml says, so the internal world is set there too.
+    config.scenario.conflict_point = 200.0 - 0.5 * config.vehicle.length;
     // Ramp vehicles merge early as the traffic world's do: from merge_zone before x_c.
-    geometry.merge_from = Some(geometry.conflict_point - config.scenario.merge_zone);
-    // Under the entry rule the ramp ends where the network's acceleration lane does (x = 200
-    // m), a centre half a length before it, in both worlds.
-    config.scenario.accel_lane = 200.0 - 0.5 * config.vehicle.length - geometry.conflict_point;
+    geometry.merge_from = Some(config.scenario.conflict_point - config.scenario.merge_zone);
     let steps = 100;
     // The first two episodes that stay on the network (front bumpers short of NET_END), run
     // 10 s without a collision (an internal episode ends at its first one) and include a merge
