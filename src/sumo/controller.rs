@@ -366,8 +366,6 @@ impl Controller {
         policy: Option<PolicyEnsemble>,
         modes: ControlModes,
     ) -> Self {
-        let config = config.at_conflict_point(geometry.conflict_point);
-        let rules = WorldRules::new(&config);
         let traffic = Layout::of(&config) == Layout::Traffic;
         // The road's speed limit, within the desired speeds the policy was trained on.
         let trained = config.traffic.as_ref().and_then(|t| t.desired_speed);
@@ -387,20 +385,15 @@ impl Controller {
         // `x_c - x` as the room left before it must have entered. With x_c where merge.toml puts
         // it (20 m before an acceleration lane's end) the egos braked for a stop 17.5 m short
         // of the real one (docs/experiments.md, "Where the policy's ramp ends").
-        let mut config = config;
-        let mut rules = rules;
-        if let (Entry::Gap, Some(end)) = (config.scenario.entry, lane_end) {
-            config = config.at_conflict_point(end - 0.5 * config.vehicle.length);
-            // The merge zone, where players make room for a ramp vehicle, starts where the
-            // egos may enter (`merge_from`), as the training's starts where its ramp vehicles may.
-            if let Some(from) = geometry.merge_from {
-                config.scenario.merge_zone = config
-                    .scenario
-                    .merge_zone
-                    .max(config.scenario.conflict_point - from);
-            }
-            rules = WorldRules::new(&config);
+        let ramp_end = lane_end.filter(|_| config.scenario.entry == Entry::Gap);
+        let x_c = ramp_end.map_or(geometry.conflict_point, |end| end - 0.5 * config.vehicle.length);
+        let mut config = config.at_conflict_point(x_c);
+        // The merge zone, where players make room for a ramp vehicle, starts where the egos
+        // may enter (`merge_from`), as the training's starts where its ramp vehicles may.
+        if let (Some(_), Some(from)) = (ramp_end, geometry.merge_from) {
+            config.scenario.merge_zone = config.scenario.merge_zone.max(x_c - from);
         }
+        let mut rules = WorldRules::new(&config);
         if modes != ControlModes::EXACT {
             rules.gate.clearance += sumo_step_reach(&config);
         }
