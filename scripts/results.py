@@ -187,7 +187,7 @@ def study_rows():
     seeds = re.search(r"seeds ([\d, ]+), ([\d.]+) s runs", text)
     setting = (f"{os.path.basename(os.path.dirname(net.group(1)))}, demand {net.group(2)}, "
                f"seeds {seeds.group(1)}, {seeds.group(2)} s" if net and seeds else "?")
-    verdict = re.search(r"^(The game .*)$", text, re.M)
+    verdict = re.search(r"^(The game('s)? .*)$", text, re.M)
     capacity = re.search(r"^(The merge (breaks|does not break) .*)$", text, re.M)
     return [
         f"| Penetration study ({setting}): time loss of every vehicle, the game / SUMO's drivers "

@@ -60,6 +60,13 @@ pub struct ScenarioConfig {
     /// Default 0: at `x_c` only, as the paper.
     #[serde(default)]
     pub merge_zone: f64,
+    /// From this distance before `x_c` on, the drivers who make room for a ramp vehicle
+    /// (`sim.players_make_room`, `traffic.cooperation`) make room for it (m; ours), as SUMO's
+    /// drivers slow for a vehicle that signals before it can change lanes: a gap opened only once
+    /// the ramp vehicle is in the merge zone is opened too late for a slow one beside a platoon.
+    /// Default (and at least) `merge_zone`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yield_zone: Option<f64>,
     /// The ramp goes on this far past `x_c` as an acceleration lane (m; ours): a ramp vehicle
     /// without a safe gap by `x_c` stays on it, changes lanes at the first safe gap, and joins
     /// the target lane at its end at the latest (where the merge gate, when on, holds it).
@@ -534,6 +541,9 @@ impl Config {
         positive("scenario.road_length", s.road_length)?;
         positive("scenario.lane_width", s.lane_width)?;
         non_negative("scenario.merge_zone", s.merge_zone)?;
+        if let Some(zone) = s.yield_zone {
+            non_negative("scenario.yield_zone", zone)?;
+        }
         non_negative("scenario.accel_lane", s.accel_lane)?;
         finite("scenario.conflict_point", s.conflict_point)?;
         check(

@@ -8,7 +8,7 @@
 //! one pass). Masks are numbers: 1.0 where a condition holds, else 0.0.
 
 /// Element-wise arithmetic shared by `f64` and the training rollout's numbers.
-pub trait Num: Sized {
+pub trait Num: Sized + Clone {
     /// A value of the same shape (and device/kind) as `self`, filled with `c`.
     fn full(&self, c: f64) -> Self;
     /// `self + o`.

@@ -393,8 +393,9 @@ fn limits_once(
 }
 
 /// `sim.players_make_room` on `a`: a player that makes room for the first ramp vehicle ahead of
-/// it in the merge zone ([`player_makes_room_for`]) gets `min(a, room)`, `room` being the
-/// projection's bound behind that vehicle, when braking at `sim.b_safe` or less does it (as
+/// it in the yield zone ([`player_makes_room_for`]) gets `min(a, room)`, `room` being
+/// [`crate::world::drivers::Room`]'s bound behind that vehicle, when braking at `sim.b_safe` or
+/// less reaches the gap it asks (as
 /// [`crate::world::step::applied_action_with`]).
 fn make_room(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
     let (rows, n) = (batch.x.rows(), batch.x.cols());
@@ -416,10 +417,10 @@ fn make_room(rules: &WorldRules, batch: &TensorBatch, a: &Var) -> Var {
         present: Var::constant(mask.iter().map(|&m| f64::from(u8::from(m))).collect(), rows, n),
     };
     let room = make_room_bound(&batch.x, &batch.v, &ramp, rules);
-    let chosen = (mask.iter().zip(room.values()))
+    let chosen = (mask.iter().zip(room.reach.values()))
         .map(|(&m, &r)| f64::from(u8::from(m && makes_room(r, rules.gate.b_safe))))
         .collect();
-    Var::select(&Var::constant(chosen, rows, n), &a.min(&room), a)
+    Var::select(&Var::constant(chosen, rows, n), &a.min(&room.bound), a)
 }
 
 /// The merge gate on `a`: ramp players it holds get `min(a, stop bound)` (every player with

@@ -4,7 +4,7 @@ use crate::config::Config;
 use crate::num::Num;
 use crate::world::geometry::Road;
 use crate::world::idm::{idm_accel, idm_v0};
-use crate::world::merge_gate::GateRules;
+use crate::world::merge_gate::{GateRules, STOP_MARGIN};
 use crate::world::neighbors::Neighbors;
 use crate::world::rules::WorldRules;
 use crate::world::safety::{Neighbor, feasible_interval_after};
@@ -78,13 +78,13 @@ pub fn yields_to(road: &Road, scene: &Scene, i: usize, leader: Option<usize>) ->
     let j = leader?;
     let other = &scene.vehicles[j];
     let yields =
-        scene.is_yielding(i) && !scene.vehicles[i].on_ramp && other.on_ramp && road.in_merge_zone(other.x);
+        scene.is_yielding(i) && !scene.vehicles[i].on_ramp && other.on_ramp && road.in_yield_zone(other.x);
     yields.then_some(j)
 }
 
 /// The ramp vehicle a policy-driven target-lane player `i` makes room for under
 /// `sim.players_make_room` ([`crate::world::step::applied_action_with`]): the first ramp
-/// vehicle ahead of it in the merge zone, whatever target-lane vehicles are in between. With
+/// vehicle ahead of it in the yield zone, whatever target-lane vehicles are in between. With
 /// its nearest leader only, the followers of a car too close to make room saw the ramp vehicle
 /// only once it had passed (`i80_merge`, the game: 9.6 m/s against 10.2). A human driver
 /// yields by its own rule ([`yields_to`]).
@@ -94,17 +94,34 @@ pub fn player_makes_room_for(road: &Road, scene: &Scene, i: usize) -> Option<usi
         return None;
     }
     (scene.vehicles.iter().enumerate())
-        .filter(|(_, r)| r.on_ramp && r.x > me.x && road.in_merge_zone(r.x))
+        .filter(|(_, r)| r.on_ramp && r.x > me.x && road.in_yield_zone(r.x))
         .min_by(|(_, p), (_, q)| p.x.total_cmp(&q.x))
         .map(|(j, _)| j)
 }
 
-/// The largest action (m/s^2) of a player at `(x, v)` that makes room for ramp vehicle `ramp`
-/// (`sim.players_make_room`): the projection's bound behind it (TTC and time gap, as behind a
-/// leader) and, under the entry rule, [`secure_gap_bound`] too, so that the room it makes is
-/// a gap the entry rule lets the ramp vehicle into. With the projection's bound alone a player
-/// at 27 m/s behind one at 25 m/s may keep 33 m (beyond the clearance) where the entry asks 40 m.
-pub fn make_room_bound<T: Num>(x: &T, v: &T, ramp: &Neighbor<T>, rules: &WorldRules) -> T {
+/// How a player at `(x, v)` makes room for ramp vehicle `ramp` (`sim.players_make_room`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Room<T> {
+    /// The largest action (m/s^2) it takes: the projection's bound behind the ramp vehicle (TTC
+    /// and time gap, as behind a leader) and, under the entry rule, [`secure_gap_bound`] too, so
+    /// that the room it makes is a gap the entry rule lets the ramp vehicle into; under the entry
+    /// rule never below `-b_safe`, where the projection's TTC alone asks more (a player closing
+    /// on a slow ramp vehicle brakes at `b_safe` towards the secure gap). With the projection's
+    /// bound alone a player at 27 m/s behind one at 25 m/s may keep 33 m (beyond the clearance)
+    /// where the entry asks 40 m.
+    pub bound: T,
+    /// The bound whose feasibility decides whether it makes room at all ([`makes_room`]). Under
+    /// the entry rule: the larger of the secure gap's behind the ramp vehicle as it is and behind
+    /// it stopped at the ramp's end (where it is at the latest, waiting): a player that can still
+    /// stop behind the ramp's end at `b_safe` makes room for a ramp vehicle however hard that one
+    /// brakes. Judged by the ramp vehicle as it is, a player 80 m behind at 19 m/s gave up as
+    /// soon as the vehicle braked for the lane's end, and the players passed a stopped ramp
+    /// vehicle 1.4 s apart for 15 s (`acc60-v20`, the game). Else the projection's bound.
+    pub reach: T,
+}
+
+/// How a player at `(x, v)` makes room for ramp vehicle `ramp` ([`Room`]).
+pub fn make_room_bound<T: Num>(x: &T, v: &T, ramp: &Neighbor<T>, rules: &WorldRules) -> Room<T> {
     let absent = Neighbor {
         x: x.full(0.0),
         v: v.full(0.0),
@@ -112,8 +129,20 @@ pub fn make_room_bound<T: Num>(x: &T, v: &T, ramp: &Neighbor<T>, rules: &WorldRu
     };
     let (_, room) = feasible_interval_after(x, v, ramp, &ramp.v, &absent, &rules.projection());
     match rules.gate.reaction_time {
-        Some(t_r) => room.min(&secure_gap_bound(x, v, &ramp.x, &ramp.v, t_r, &rules.gate)),
-        None => room,
+        Some(t_r) => {
+            let gate = &rules.gate;
+            let secure = secure_gap_bound(x, v, &ramp.x, &ramp.v, t_r, gate);
+            let end = x.full(gate.conflict_point - STOP_MARGIN);
+            let at_end = secure_gap_bound(x, v, &end, &x.full(0.0), t_r, gate);
+            Room {
+                bound: room.min(&secure).max(&x.full(-gate.b_safe)),
+                reach: secure.max(&at_end),
+            }
+        }
+        None => Room {
+            bound: room.clone(),
+            reach: room,
+        },
     }
 }
 
@@ -177,8 +206,10 @@ mod tests {
         let room = 1.0 - (10.0f64 / 15.0).powi(4) - (17.0f64 / 13.0).powi(2);
         assert!((accel(&config, (150.0, 10.0), (130.0, 10.0), true) - room).abs() < 1e-12);
         assert!((room + 0.907590).abs() < 1e-6);
-        // Not for a ramp vehicle before the merge zone (140 m), nor one behind it.
-        assert!((accel(&config, (135.0, 10.0), (115.0, 10.0), true) - free).abs() < 1e-12);
+        // Not for a ramp vehicle before the yield zone (scenario.yield_zone 120 m: 60 m), nor
+        // one behind it; for one in it before the merge zone, yes.
+        assert!((accel(&config, (59.0, 10.0), (39.0, 10.0), true) - free).abs() < 1e-12);
+        assert!((accel(&config, (61.0, 10.0), (41.0, 10.0), true) - room).abs() < 1e-12);
         assert!((accel(&config, (150.0, 10.0), (155.0, 10.0), true) - free).abs() < 1e-12);
         // Never harder than b_safe (4 m/s^2): 7.5 m behind a stopped ramp vehicle at 10 m/s it
         // would need far more (gap 0.5 m against s* = 2 + 15 + 10 * 10 / (2 sqrt 1.5) = 57.8 m),
@@ -216,8 +247,9 @@ mod tests {
             "{}",
             act(&config, &scene, 2)
         );
-        // T is too close to R to make room (v' <= (4 + 7.2 / 3) * 0.75 = 4.8: a = -52): it
-        // drives on past it.
+        // T is too close to R to make room (v' <= (4 + 7.2 / 3) * 0.75 = 4.8: a = -52), and to
+        // stop behind the ramp's end at b_safe (v' <= -4.4 + sqrt(4.4^2 + 8 * 21.9) = 9.55: a =
+        // -4.5): it drives on past it.
         assert_eq!(act(&config, &scene, 1), 0.0);
         // A human driver yields by its own rule only; without the setting nobody does.
         let human = Scene {
@@ -246,19 +278,46 @@ mod tests {
         let secure = crate::world::merge_gate::secure_gap(v_next, 25.0, 1.0, gate.b_safe);
         assert!((gap - secure).abs() < 1e-9, "{gap} {secure}");
         // The projection's bound (TTC 3 s, 1 s time gap) is far looser here, (25 + 42.8 / 3)
-        // * 0.75 = 29.45 m/s, a <= 24.5: the bound kept is the entry's. 10 m closer, P cannot
-        // make room within b_safe (a <= -9.57).
+        // * 0.75 = 29.45 m/s, a <= 24.5: the bound kept is the entry's. 10 m closer, the entry's
+        // gap asks a <= -9.57, more than b_safe; P still makes room, braking at b_safe, for it can
+        // stop behind the ramp's end, 180 m on (test above).
         let ramp = Neighbor {
             x: 50.0,
             v: 25.0,
             present: 1.0,
         };
-        assert_eq!(make_room_bound(&0.0, &27.0, &ramp, &rules), bound);
-        let close = Neighbor { x: 40.0, ..ramp };
-        assert!(!makes_room(
-            make_room_bound(&0.0, &27.0, &close, &rules),
-            gate.b_safe
-        ));
+        assert_eq!(make_room_bound(&0.0, &27.0, &ramp, &rules).bound, bound);
+        let close = make_room_bound(&0.0, &27.0, &Neighbor { x: 40.0, ..ramp }, &rules);
+        assert!(makes_room(close.reach, gate.b_safe));
+        assert_eq!(close.bound, -gate.b_safe);
+        let entry = secure_gap_bound(&0.0, &27.0, &40.0, &25.0, 1.0, gate);
+        assert!((entry + 9.57).abs() < 0.01, "{entry}");
+    }
+
+    #[test]
+    fn a_player_that_can_stop_behind_the_ramps_end_makes_room_however_hard_the_ramp_vehicle_brakes() {
+        // configs/traffic.toml: the ramp ends at x_c = 180 m (a stopped vehicle's centre at
+        // 179.9), clearance 7 m, reaction time 1 s, b_safe 4, dt 0.1. Ramp vehicle R at 150 m
+        // braking through 4 m/s; player P at 90 m, 19 m/s. Behind R as it is, the secure gap
+        // (150 + 0.8 - 91.9 - 7 = 51.9 m) asks v' <= -4.4 + sqrt(4.4^2 + 8 * 51.9 + 16) =
+        // 16.826 (a = -21.74); behind R stopped at the ramp's end (179.9 - 91.9 - 7 = 81 m),
+        // v' <= -4.4 + sqrt(4.4^2 + 8 * 81) = 21.433 (a = 24.33). P can stop there, so it makes
+        // room, braking at b_safe.
+        use crate::world::rules::WorldRules;
+        let rules = WorldRules::new(&traffic_config());
+        let ramp = Neighbor {
+            x: 150.0,
+            v: 4.0,
+            present: 1.0,
+        };
+        let room = make_room_bound(&90.0, &19.0, &ramp, &rules);
+        assert!((room.reach - 24.333_118).abs() < 1e-5, "{}", room.reach);
+        assert!(makes_room(room.reach, rules.gate.b_safe));
+        assert_eq!(room.bound, -rules.gate.b_safe);
+        // 30 m further on it can do neither (-88.9 behind R, -27.3 behind the end): it drives on.
+        let late = make_room_bound(&120.0, &19.0, &ramp, &rules);
+        assert!((late.reach + 27.273_127).abs() < 1e-5, "{}", late.reach);
+        assert!(!makes_room(late.reach, rules.gate.b_safe));
     }
 
     #[test]

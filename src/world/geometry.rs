@@ -18,6 +18,9 @@ pub struct Road {
     pub lane_width: f64,
     /// How far before `x_c` a ramp vehicle may join the target lane at a safe gap (m).
     pub merge_zone: f64,
+    /// How far before `x_c` the drivers who make room for a ramp vehicle start to (m; at least
+    /// `merge_zone`, `scenario.yield_zone`).
+    pub yield_zone: f64,
     /// How far the ramp goes on past `x_c` as an acceleration lane (m).
     pub accel_lane: f64,
 }
@@ -29,6 +32,8 @@ impl Road {
             conflict_point: config.scenario.conflict_point,
             lane_width: config.scenario.lane_width,
             merge_zone: config.scenario.merge_zone,
+            yield_zone: (config.scenario.yield_zone)
+                .map_or(config.scenario.merge_zone, |z| z.max(config.scenario.merge_zone)),
             accel_lane: config.scenario.accel_lane,
         }
     }
@@ -37,6 +42,12 @@ impl Road {
     /// from the merge zone's start before `x_c` to the acceleration lane's end.
     pub fn in_merge_zone(&self, x: f64) -> bool {
         self.merge_zone + self.accel_lane > 0.0 && x >= self.conflict_point - self.merge_zone
+    }
+
+    /// Whether a ramp vehicle at `x` is where the drivers who make room for one do
+    /// (`scenario.yield_zone`): the merge zone and up to `yield_zone` before `x_c`.
+    pub fn in_yield_zone(&self, x: f64) -> bool {
+        self.merge_zone + self.accel_lane > 0.0 && x >= self.conflict_point - self.yield_zone
     }
 
     /// Where the ramp ends (m): `x_c` plus the acceleration lane.

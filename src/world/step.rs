@@ -127,8 +127,8 @@ pub fn applied_action_with(
             if let Some(j) = player_makes_room_for(&rules.road, scene, i) {
                 let ramp = neighbor_of(scene, Some(j), me);
                 let room = make_room_bound(&me.x, &me.v, &ramp, rules);
-                if makes_room(room, rules.gate.b_safe) {
-                    a = a.min(room);
+                if makes_room(room.reach, rules.gate.b_safe) {
+                    a = a.min(room.bound);
                 }
             }
         }
