@@ -235,6 +235,13 @@ pub struct SimConfig {
     /// drivers of `traffic.cooperation` do. Off when absent (the paper's players).
     #[serde(default)]
     pub players_make_room: bool,
+    /// With `feasibility`: a target-lane vehicle's immediate leader and follower of Section
+    /// V-ii are the nearest vehicles ahead and behind by longitudinal position in either lane
+    /// (as Table I orders them), so that it keeps the TTC above `tau_s` to a ramp vehicle too;
+    /// its same-lane ones still bind ([`crate::world::step::applied_action_with`]). Off when
+    /// absent: same-lane neighbours only.
+    #[serde(default)]
+    pub feasibility_across_lanes: bool,
     /// End the episode for everyone at the first collision.
     pub terminate_on_collision: bool,
     /// With termination: charge each player its collision-step reward for every remaining

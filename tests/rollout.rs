@@ -368,6 +368,35 @@ fn a_ramp_queue_keeps_its_ttc_as_the_target_lane_does() {
     assert_abs_diff_eq!(a, 9.81, epsilon = 1e-12);
 }
 
+#[test]
+fn across_lanes_a_target_lane_car_keeps_its_ttc_to_the_ramp_vehicles_beside_it() {
+    // configs/paper.toml with `sim.feasibility_across_lanes`: 5 m cars, 2 m safety gap, tau_s
+    // = 3 s, dt = 0.1 s. Ramp car R at 120 m and 5 m/s; target-lane car T at 100 m and 15 m/s,
+    // raw +3. R is T's nearest leader: one step on the gap less the clearance is (120.5 -
+    // 101.5) - 7 = 12 m, so v' <= 5 + 12 / 3 = 9 and a <= (9 - 15) / 0.1 = -60, clipped to -g.
+    // Same-lane neighbours only (the setting off), T keeps its +3.
+    let mut config = common::paper();
+    config.sim.feasibility_across_lanes = true;
+    let act = |config: &mpgdrive::Config, s: &mpgdrive::world::state::Scene, i: usize, raw: f64| {
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        mpgdrive::world::neighbors::find_neighbors(s, &mut order, &mut nb);
+        let rules = mpgdrive::world::WorldRules::new(config);
+        mpgdrive::world::step::applied_action(&rules, true, s, i, &nb[i], raw)
+    };
+    let behind = scene(vec![car(120.0, 5.0, true), car(100.0, 15.0, false)]);
+    assert_abs_diff_eq!(act(&config, &behind, 1, 3.0), -9.81, epsilon = 1e-12);
+    let mut lane_only = config.clone();
+    lane_only.sim.feasibility_across_lanes = false;
+    assert_abs_diff_eq!(act(&lane_only, &behind, 1, 3.0), 3.0, epsilon = 1e-12);
+    // T at 130 m and 10 m/s ahead of R at 115 m and 12 m/s, raw -8: R is T's nearest
+    // follower, gap (131 - 116.2) - 7 = 7.8 m, so v' >= 12 - 7.8 / 3 = 9.4, a >= -6.
+    let ahead = scene(vec![car(115.0, 12.0, true), car(130.0, 10.0, false)]);
+    assert_abs_diff_eq!(act(&config, &ahead, 1, -8.0), -6.0, epsilon = 1e-9);
+    assert_abs_diff_eq!(act(&lane_only, &ahead, 1, -8.0), -8.0, epsilon = 1e-12);
+    // A ramp vehicle is bound by its own lane only: R keeps its raw action.
+    assert_abs_diff_eq!(act(&config, &ahead, 0, 1.0), 1.0, epsilon = 1e-12);
+}
+
 /// Applied actions of a leader at 120 m (10 m/s) and a follower at 100 m (14 m/s) in the
 /// target lane, raw -3 and +3 m/s^2, with the ego far behind on the ramp, over `steps`.
 fn pair_actions(order: mpgdrive::config::ProjectionOrder, steps: usize) -> Vec<[f64; 2]> {

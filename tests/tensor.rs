@@ -85,6 +85,17 @@ fn ungated() -> Config {
 }
 
 #[test]
+fn engines_agree_with_feasibility_across_lanes() {
+    // The other reading of the paper's immediate neighbours: the target-lane drivers keep
+    // their TTC to the IDM ego on the ramp too, and the ungated crashes above disappear, in
+    // both engines alike.
+    let mut config = ungated();
+    config.sim.feasibility_across_lanes = true;
+    assert_eq!(compare(&config, Driver::Idm, Driver::Idm, true, true), 0);
+    assert_eq!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true), 0);
+}
+
+#[test]
 fn engines_agree_with_idm_players_and_feasibility() {
     assert!(compare(&ungated(), Driver::Idm, Driver::Idm, true, true) > 0);
 }

@@ -366,6 +366,11 @@ fn limits_once(
         } else {
             (lo, hi)
         };
+        let (lo, hi) = if rules.feasibility_across_lanes {
+            across_lanes(rules, batch, nb, lo, hi)
+        } else {
+            (lo, hi)
+        };
         let lane = project_feasible(raw, &lo, &hi);
         let lane = if rules.players_make_room {
             make_room(rules, batch, &lane)
@@ -390,6 +395,25 @@ fn limits_once(
         a
     };
     clip_action(&a, &batch.v, rules.max_accel, rules.v_min, rules.v_max, dt)
+}
+
+/// `sim.feasibility_across_lanes` on the interval `(lo, hi)`: for a target-lane vehicle, also
+/// the projection's bounds towards its nearest leader and follower where those are on the ramp
+/// (as [`crate::world::step::applied_action_with`]).
+fn across_lanes(rules: &WorldRules, batch: &TensorBatch, nb: &NeighborIndex, lo: Var, hi: Var) -> (Var, Var) {
+    let in_lane = batch.on_ramp.neg().add_c(1.0);
+    let ramp = |which: Which| {
+        let n = nb.get(batch, which);
+        let on_ramp = batch.on_ramp.gather_cols(&nb.index[which as usize]);
+        Neighbor {
+            present: n.present.mul(&on_ramp).mul(&in_lane),
+            ..n
+        }
+    };
+    let (lead, follow) = (ramp(Which::Leader), ramp(Which::Follower));
+    let (ramp_lo, ramp_hi) =
+        feasible_interval_after(&batch.x, &batch.v, &lead, &lead.v, &follow, &rules.projection());
+    (lo.max(&ramp_lo), hi.min(&ramp_hi))
 }
 
 /// `sim.players_make_room` on `a`: a player that makes room for the first ramp vehicle ahead of

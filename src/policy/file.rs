@@ -92,7 +92,7 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
 
 /// The world rules a trained policy's behaviour rests on, by configuration key: the step, the
 /// limits, the vehicle box, the geometry and the feasibility rules (flags as 0 or 1).
-fn world_rules(c: &Config) -> [(&'static str, f64); 21] {
+fn world_rules(c: &Config) -> [(&'static str, f64); 22] {
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     [
         ("sim.dt", c.sim.dt),
@@ -124,6 +124,10 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 21] {
         ("sim.reaction_time", c.sim.reaction_time),
         ("sim.project_non_learning", flag(c.sim.project_non_learning)),
         ("sim.players_make_room", flag(c.sim.players_make_room)),
+        (
+            "sim.feasibility_across_lanes",
+            flag(c.sim.feasibility_across_lanes),
+        ),
         (
             "scenario.yield_zone",
             crate::world::geometry::Road::new(c).yield_zone,

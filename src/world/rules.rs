@@ -44,6 +44,9 @@ pub struct WorldRules {
     /// Whether policy-driven target-lane players make room for a ramp vehicle in the merge
     /// zone ahead of them (`sim.players_make_room`).
     pub players_make_room: bool,
+    /// Whether a target-lane vehicle's feasibility also binds towards the nearest ramp
+    /// vehicles ahead and behind (`sim.feasibility_across_lanes`).
+    pub feasibility_across_lanes: bool,
 }
 
 impl WorldRules {
@@ -80,6 +83,7 @@ impl WorldRules {
             merge_gate: config.sim.merge_gate,
             gate: GateRules::new(config),
             players_make_room: config.sim.players_make_room,
+            feasibility_across_lanes: config.sim.feasibility_across_lanes,
         }
     }
 

@@ -122,6 +122,9 @@ pub fn applied_action_with(
                 &flag(settled.projected.leader),
             );
         }
+        if rules.feasibility_across_lanes && !me.on_ramp {
+            (lo, hi) = across_lanes(scene, me, nb, (lo, hi), rules);
+        }
         a = project_feasible(&a, &lo, &hi);
         if rules.players_make_room {
             if let Some(j) = player_makes_room_for(&rules.road, scene, i) {
@@ -143,6 +146,25 @@ pub fn applied_action_with(
         a = a.min(lane_end_bound(&me.x, &me.v, &rules.gate));
     }
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
+}
+
+/// `sim.feasibility_across_lanes`: the target-lane vehicle `me`'s feasible interval `(lo, hi)`
+/// narrowed by the projection's bounds towards its nearest leader and follower (any lane,
+/// [`Neighbors`]) where those are ramp vehicles: the paper's immediate neighbours read by
+/// longitudinal position, as Table I orders the players.
+fn across_lanes(
+    scene: &Scene,
+    me: &Vehicle,
+    nb: &Neighbors,
+    (lo, hi): (f64, f64),
+    rules: &WorldRules,
+) -> (f64, f64) {
+    let on_ramp = |who: Option<usize>| who.filter(|&j| scene.vehicles[j].on_ramp);
+    let lead = neighbor_of(scene, on_ramp(nb.leader), me);
+    let follow = neighbor_of(scene, on_ramp(nb.follower), me);
+    let (ramp_lo, ramp_hi) =
+        feasible_interval_after(&me.x, &me.v, &lead, &lead.v, &follow, &rules.projection());
+    (lo.max(ramp_lo), hi.min(ramp_hi))
 }
 
 /// The first overlapping pair `(a, b)`, `a < b`, in index order, among the pairs `counts`
