@@ -276,7 +276,7 @@ fn cases() -> Vec<Case> {
         ),
         traffic_eval(
             "a traffic human share above 1",
-            read("configs/traffic.toml").replace("human_share = [0.0, 0.6]", "human_share = [0.0, 1.6]"),
+            read("configs/traffic.toml").replace("human_share = [0.0, 1.0]", "human_share = [0.0, 1.6]"),
             "traffic.human_share",
         ),
         c(
