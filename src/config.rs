@@ -398,6 +398,29 @@ pub struct TrainConfig {
     /// Extra training states with the ego close to the merge (none when absent).
     #[serde(default)]
     pub near_merge: Option<NearMergeConfig>,
+    /// Share of every training minibatch and of the probe set drawn from the descriptions of
+    /// the paper's two specific scenarios, alternately ([`crate::world::scenarios::Preset::draw_state`],
+    /// from the set's own random streams); 0 when absent.
+    #[serde(default)]
+    pub scenario_share: f64,
+    /// The training rewards' `epsilon` starts here and decays geometrically to
+    /// `reward.epsilon` over the first `train.continuation.epochs` epochs (none when absent).
+    #[serde(default)]
+    pub continuation: Option<ContinuationConfig>,
+}
+
+/// A continuation of the pair terms' cap (graduated non-convexity): every pair penalty of
+/// the TTC and conflict terms is at most `1 / epsilon`, and each merge slot of the ego is a
+/// basin of the potential between two pairs' ridges of that height. Training starts with the
+/// ridges low (`epsilon_start` above `reward.epsilon`) and raises them to the configured game's
+/// over `epochs`; the probe, screening and every evaluation use the configured reward.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ContinuationConfig {
+    /// `epsilon` of the first epoch, at least `reward.epsilon`.
+    pub epsilon_start: f64,
+    /// Epochs over which it decays to `reward.epsilon` (at least 1).
+    pub epochs: usize,
 }
 
 /// A share of every training minibatch drawn with a slow ego close to `x_c`, where followers
@@ -681,6 +704,37 @@ impl Config {
                 self.train.screen_epochs
             ),
         )?;
+        finite("train.scenario_share", t.scenario_share)?;
+        let near_share = t.near_merge.as_ref().map_or(0.0, |n| n.share);
+        check(
+            "train.scenario_share",
+            t.scenario_share >= 0.0 && t.scenario_share + near_share.max(0.0) <= 1.0,
+            format!(
+                "{} must lie in [0, 1 - train.near_merge.share] ({near_share})",
+                t.scenario_share
+            ),
+        )?;
+        check(
+            "train.scenario_share",
+            t.scenario_share == 0.0 || s.kind != ScenarioKind::Traffic,
+            "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
+        )?;
+        if let Some(c) = &t.continuation {
+            finite("train.continuation.epsilon_start", c.epsilon_start)?;
+            check(
+                "train.continuation.epsilon_start",
+                c.epsilon_start >= self.reward.epsilon,
+                format!(
+                    "{} must be at least reward.epsilon ({})",
+                    c.epsilon_start, self.reward.epsilon
+                ),
+            )?;
+            check(
+                "train.continuation.epochs",
+                c.epochs >= 1,
+                "must be at least 1".into(),
+            )?;
+        }
         if let Some(n) = &t.near_merge {
             finite("train.near_merge.share", n.share)?;
             check(

@@ -238,6 +238,27 @@ fn cases() -> Vec<Case> {
                 + "\n[train.near_merge]\nshare = 0.2\nego_position = [150.0, 250.0]\nego_speed = [0.0, 8.0]\n",
             "train.near_merge.ego_position",
         ),
+        train(
+            "a NaN scenario share",
+            smoke().replace("[train]\n", "[train]\nscenario_share = nan\n"),
+            "train.scenario_share",
+        ),
+        train(
+            "scenario and near-merge shares above 1 together",
+            smoke().replace("[train]\n", "[train]\nscenario_share = 0.8\n")
+                + "\n[train.near_merge]\nshare = 0.25\nego_position = [150.0, 178.0]\nego_speed = [0.0, 8.0]\n",
+            "train.scenario_share",
+        ),
+        train(
+            "a continuation that starts below the reward's epsilon",
+            smoke() + "\n[train.continuation]\nepsilon_start = 0.001\nepochs = 5\n",
+            "train.continuation.epsilon_start",
+        ),
+        train(
+            "a continuation over no epochs",
+            smoke() + "\n[train.continuation]\nepsilon_start = 1.0\nepochs = 0\n",
+            "train.continuation.epochs",
+        ),
         train("zero hidden width", smoke_with("hidden", "0"), "hidden"),
         train("zero epochs", smoke_with("epochs", "0"), "epochs"),
         train("zero threads", smoke_with("threads", "0"), "threads"),

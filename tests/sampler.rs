@@ -5,7 +5,11 @@ mod common;
 use common::{paper, smoke};
 use mpgdrive::config::NearMergeConfig;
 use mpgdrive::world::safety::ttc;
-use mpgdrive::world::sampler::{sample_scene, sample_scenes, sample_training_scenes, stratum};
+use mpgdrive::world::sampler::{
+    family_scene, sample_probe_scenes, sample_scene, sample_scenes, sample_training_scenes, scenario_rng,
+    stratum,
+};
+use mpgdrive::world::scenarios::Preset;
 use proptest::prelude::*;
 
 proptest! {
@@ -123,4 +127,49 @@ fn a_near_merge_share_redraws_only_the_last_states_of_a_minibatch_with_the_same_
             assert!((offset(&batch[k]) - offset(&plain[k])).abs() < 1e-9, "player {i}");
         }
     }
+}
+
+#[test]
+fn a_scenario_share_draws_the_states_before_the_near_merge_ones_from_the_papers_scenarios() {
+    let mut config = paper();
+    config.train.batch = 10;
+    config.train.probe_scenarios = 6;
+    config.train.near_merge = Some(NearMergeConfig {
+        share: 0.2, // the last 2 states
+        ego_position: [150.0, 178.0],
+        ego_speed: [0.0, 8.0],
+    });
+    config.train.scenario_share = 0.0;
+    let without = sample_training_scenes(&config, 9, 3);
+    assert_eq!(sample_probe_scenes(&config, 9), sample_scenes(&config, 9, 0, 6));
+    // round(0.3 * 8) = 2 of the 8 states before the near-merge ones: indices 36 and 37.
+    config.train.scenario_share = 0.3;
+    let with = sample_training_scenes(&config, 9, 3);
+    assert_eq!(with[..6], without[..6]);
+    assert_eq!(with[8..], without[8..]);
+    // Index 36 (even) is scenario 1's description, 37 (odd) scenario 2's, each read from the
+    // index's own stream of seed 9.
+    assert_eq!(with[6], family_scene(&config, 9, 36));
+    assert_eq!(with[7], family_scene(&config, 9, 37));
+    let one = Preset::One.draw_state(&mut scenario_rng(9, 36));
+    let two = Preset::Two.draw_state(&mut scenario_rng(9, 37));
+    assert_eq!(with[6], one.scene(&config));
+    assert_eq!(with[7], two.scene(&config));
+    // Scenario 1: followers above v_d = 15 and "5" 100-140 m behind the ego; scenario 2: "5"
+    // 4-8 m/s faster than the ego.
+    let (ego, five) = (with[6].ego(), &with[6].vehicles[5]);
+    assert!(
+        five.v > 15.0 && (100.0..=140.0).contains(&(ego.x - five.x)),
+        "{:?}",
+        with[6]
+    );
+    let (ego, five) = (with[7].ego(), &with[7].vehicles[5]);
+    assert!((4.0..=8.0).contains(&(five.v - ego.v)), "{:?}", with[7]);
+    // Not the fixed described sets (seeds 1 and 2).
+    assert_ne!(one, Preset::One.described_states(37)[36]);
+    // The probe set: the last round(0.3 * 6) = 2 of its 6 states.
+    let probe = sample_probe_scenes(&config, 9);
+    assert_eq!(probe[..4], sample_scenes(&config, 9, 0, 4)[..]);
+    assert_eq!(probe[4], family_scene(&config, 9, 4));
+    assert_eq!(probe[5], family_scene(&config, 9, 5));
 }

@@ -348,6 +348,66 @@ fn learning_rate_decays_exponentially_to_its_final_value() {
 }
 
 #[test]
+fn the_continuation_decays_epsilon_geometrically_to_the_rewards() {
+    let mut config = smoke();
+    config.reward.epsilon = 0.02;
+    assert_eq!(
+        mpgdrive::train::training_epsilon(&config, 0),
+        0.02,
+        "none configured"
+    );
+    config.train.continuation = Some(mpgdrive::config::ContinuationConfig {
+        epsilon_start: 1.0,
+        epochs: 4,
+    });
+    let eps: Vec<f64> = (0..6)
+        .map(|e| mpgdrive::train::training_epsilon(&config, e))
+        .collect();
+    // 0.02 * 50^(1 - e/4): 1, 50^0.75 * 0.02 = 0.37606, 50^0.5 * 0.02 = 0.14142, 0.05318, then 0.02.
+    approx::assert_relative_eq!(eps[0], 1.0, max_relative = 1e-12);
+    approx::assert_relative_eq!(eps[1], 0.376_060_309_308_639_7, max_relative = 1e-12);
+    approx::assert_relative_eq!(eps[2], 0.141_421_356_237_309_5, max_relative = 1e-12);
+    approx::assert_relative_eq!(eps[3], 0.053_182_958_969_449_89, max_relative = 1e-12);
+    assert_eq!(eps[4..], [0.02, 0.02]);
+}
+
+#[test]
+fn a_continuation_changes_only_the_training_rewards_epsilon() {
+    let mut config = smoke();
+    config.train.epochs = 3;
+    let weights = |dir: &std::path::Path| std::fs::read(dir.join("seed3.safetensors")).unwrap();
+    let trained = |config: &mpgdrive::config::Config, name: &str| {
+        let dir = out_dir(name);
+        let records = train(config, &run(Mode::Mpg, &dir), &NO_STOP, &mut |_| {}).unwrap();
+        (records, weights(&dir))
+    };
+    let (plain, plain_weights) = trained(&config, "cont-plain");
+    config.train.continuation = Some(mpgdrive::config::ContinuationConfig {
+        epsilon_start: config.reward.epsilon,
+        epochs: 3,
+    });
+    let (_, same_weights) = trained(&config, "cont-same");
+    assert_eq!(
+        plain_weights, same_weights,
+        "epsilon_start = epsilon is no continuation"
+    );
+    config.train.continuation = Some(mpgdrive::config::ContinuationConfig {
+        epsilon_start: 5.0,
+        epochs: 3,
+    });
+    let (cont, cont_weights) = trained(&config, "cont-5");
+    assert_ne!(plain_weights, cont_weights);
+    // The first step's minibatch objective: the same weights and states, every pair penalty
+    // -1 / (q + epsilon) less negative with epsilon 5 than with the smoke setting's 0.1.
+    assert!(
+        cont[0].train_objective > plain[0].train_objective,
+        "{} vs {}",
+        cont[0].train_objective,
+        plain[0].train_objective
+    );
+}
+
+#[test]
 fn screening_keeps_the_initialisation_with_the_best_probe_objective() {
     let mut config = smoke();
     config.train.epochs = 4;

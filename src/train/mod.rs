@@ -33,7 +33,7 @@ use crate::policy::observation::{BatchPolicy, PolicyActor};
 use crate::policy::observation::{Frame, Layout, observe, tensor_features};
 use crate::world::drivers::Driver;
 use crate::world::neighbors::find_neighbors;
-use crate::world::sampler::{Purpose, purpose_seed, sample_scenes, sample_training_scenes};
+use crate::world::sampler::{Purpose, purpose_seed, sample_probe_scenes, sample_training_scenes};
 use crate::world::state::Scene;
 use adam::Adam;
 use curves::EpochRecord;
@@ -220,6 +220,18 @@ pub fn learning_rate(t: &crate::config::TrainConfig, epoch: usize) -> f64 {
     t.learning_rate * (t.learning_rate_final / t.learning_rate).powf(progress)
 }
 
+/// The reward's `epsilon` in training epoch `epoch`: `reward.epsilon`, or during
+/// `train.continuation`'s epochs a geometric decay from its `epsilon_start` to it.
+pub fn training_epsilon(config: &Config, epoch: usize) -> f64 {
+    let end = config.reward.epsilon;
+    match &config.train.continuation {
+        Some(c) if epoch < c.epochs => {
+            end * (c.epsilon_start / end).powf(1.0 - epoch as f64 / c.epochs as f64)
+        }
+        _ => end,
+    }
+}
+
 /// Networks trained together: the stacked parameters, their optimiser, and each member's
 /// training seed (whose stream gives its minibatches).
 struct Stack {
@@ -257,10 +269,13 @@ impl Stack {
             .flat_map(|&s| sample_training_scenes(config, purpose_seed(s, Purpose::Train), epoch))
             .collect();
         let members = self.seeds.len();
+        let mut epoch_config = config.clone();
+        epoch_config.reward.epsilon = training_epsilon(config, epoch);
+        let epoch_config = std::sync::Arc::new(epoch_config);
         let shards = shards_of(&self.net, &scenes, members);
         let mode = self.mode;
         let results = workers.run(shards, move |(net, scenes)| {
-            shard_gradient(config, mode, &net, &scenes, members)
+            shard_gradient(&epoch_config, mode, &net, &scenes, members)
         });
         let mut values = vec![0.0; members];
         let mut sums: Option<Vec<Tensor>> = None;
@@ -471,14 +486,7 @@ fn probe<'env>(
 fn member_seeds_probe(config: &Config, seeds: &[u64]) -> Vec<Scene> {
     seeds
         .iter()
-        .flat_map(|&s| {
-            sample_scenes(
-                config,
-                purpose_seed(s, Purpose::Probe),
-                0,
-                config.train.probe_scenarios,
-            )
-        })
+        .flat_map(|&s| sample_probe_scenes(config, purpose_seed(s, Purpose::Probe)))
         .collect()
 }
 

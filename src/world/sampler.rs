@@ -21,6 +21,7 @@
 
 use crate::config::{Config, ScenarioKind};
 use crate::world::geometry::Road;
+use crate::world::scenarios::Preset;
 use crate::world::state::{Scene, Vehicle};
 use crate::world::traffic::sample_traffic_scene;
 use rand::{Rng, SeedableRng};
@@ -72,20 +73,59 @@ pub fn sample_scenes(config: &Config, seed: u64, first: usize, count: usize) -> 
 /// Training minibatch `epoch` of `seed`: scenarios `epoch * batch..(epoch + 1) * batch`,
 /// the last `round(share * batch)` of them drawn near the merge when `train.near_merge` is
 /// set: the ego's position and speed stratified in `near_merge`'s ranges instead of
-/// `sampling`'s (the same two draws), the players placed around it by the usual rules.
+/// `sampling`'s (the same two draws), the players placed around it by the usual rules. The
+/// `round(train.scenario_share * batch)` states before those are drawn from the paper's
+/// specific scenarios' descriptions ([`family_scene`]).
 pub fn sample_training_scenes(config: &Config, seed: u64, epoch: usize) -> Vec<Scene> {
     let batch = config.train.batch;
     let first = epoch * batch;
     let near = config.train.near_merge.as_ref();
-    let n_near = near.map_or(0, |n| ((n.share * batch as f64).round() as usize).min(batch));
+    let n_near = share_count(near.map_or(0.0, |n| n.share), batch);
+    let n_family = share_count(config.train.scenario_share, batch - n_near);
     (first..first + batch)
         .map(|k| match near {
             Some(near) if k >= first + batch - n_near => {
                 paper_scene(config, seed, k, near.ego_position, near.ego_speed)
             }
+            _ if k >= first + batch - n_near - n_family => family_scene(config, seed, k),
             _ => sample_scene(config, seed, k),
         })
         .collect()
+}
+
+/// The probe set of `seed`: its first `train.probe_scenarios` scenarios, the last
+/// `round(train.scenario_share * count)` of them drawn from the paper's specific scenarios'
+/// descriptions ([`family_scene`]).
+pub fn sample_probe_scenes(config: &Config, seed: u64) -> Vec<Scene> {
+    let count = config.train.probe_scenarios;
+    let n_family = share_count(config.train.scenario_share, count);
+    (0..count)
+        .map(|k| {
+            if k >= count - n_family {
+                family_scene(config, seed, k)
+            } else {
+                sample_scene(config, seed, k)
+            }
+        })
+        .collect()
+}
+
+/// `round(share * n)`, at most `n`.
+fn share_count(share: f64, n: usize) -> usize {
+    ((share * n as f64).round() as usize).min(n)
+}
+
+/// Scenario `index` of `seed` drawn from the description of one of the paper's specific
+/// scenarios (scenario 1 for even indices, 2 for odd ones) with the scenario's own random
+/// stream: other draws than the fixed described sets, which use seeds 1 and 2.
+pub fn family_scene(config: &Config, seed: u64, index: usize) -> Scene {
+    let preset = match index % 2 {
+        0 => Preset::One,
+        _ => Preset::Two,
+    };
+    preset
+        .draw_state(&mut scenario_rng(seed, index as u64))
+        .scene(config)
 }
 
 /// The ego's initial position and speed of scenario `index`: uniform inside its stratum's cell,

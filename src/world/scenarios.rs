@@ -13,6 +13,7 @@ use crate::world::geometry::Road;
 use crate::world::sampler::scenario_rng;
 use crate::world::state::{Scene, Vehicle};
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 
 /// A named initial state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -92,34 +93,37 @@ impl Preset {
     /// Both: the ego 20-40 m before `x_c` at 8-12 m/s, "4" 7-13 m ahead of it.
     pub fn described_states(self, n: usize) -> Vec<PresetState> {
         (0..n as u64)
-            .map(|k| {
-                let mut rng = scenario_rng(u64::from(self.number()), k);
-                let mut draw = |lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
-                let ego_before = draw(20.0, 40.0);
-                let ego_speed = draw(8.0, 12.0);
-                let gap_ahead = draw(7.0, 13.0);
-                match self {
-                    Preset::One => PresetState {
-                        ego_before,
-                        ego_speed,
-                        gap_ahead,
-                        gap_behind: draw(100.0, 140.0),
-                        leader_speed: draw(7.0, 11.0),
-                        follower_speed: draw(16.0, 20.0),
-                        headway: draw(10.0, 18.0),
-                    },
-                    Preset::Two => PresetState {
-                        ego_before,
-                        ego_speed,
-                        gap_ahead,
-                        gap_behind: draw(55.0, 85.0) - gap_ahead,
-                        leader_speed: draw(12.0, 15.0),
-                        follower_speed: ego_speed + draw(4.0, 8.0),
-                        headway: draw(20.0, 40.0),
-                    },
-                }
-            })
+            .map(|k| self.draw_state(&mut scenario_rng(u64::from(self.number()), k)))
             .collect()
+    }
+
+    /// One state drawn uniformly from the scenario's description (the ranges of
+    /// [`Preset::described_states`]), seven draws from `rng`.
+    pub fn draw_state(self, rng: &mut ChaCha8Rng) -> PresetState {
+        let mut draw = |lo: f64, hi: f64| lo + (hi - lo) * rng.random::<f64>();
+        let ego_before = draw(20.0, 40.0);
+        let ego_speed = draw(8.0, 12.0);
+        let gap_ahead = draw(7.0, 13.0);
+        match self {
+            Preset::One => PresetState {
+                ego_before,
+                ego_speed,
+                gap_ahead,
+                gap_behind: draw(100.0, 140.0),
+                leader_speed: draw(7.0, 11.0),
+                follower_speed: draw(16.0, 20.0),
+                headway: draw(10.0, 18.0),
+            },
+            Preset::Two => PresetState {
+                ego_before,
+                ego_speed,
+                gap_ahead,
+                gap_behind: draw(55.0, 85.0) - gap_ahead,
+                leader_speed: draw(12.0, 15.0),
+                follower_speed: ego_speed + draw(4.0, 8.0),
+                headway: draw(20.0, 40.0),
+            },
+        }
     }
 }
 
