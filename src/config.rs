@@ -410,10 +410,10 @@ pub struct TrainConfig {
 }
 
 /// A continuation of the pair terms' cap (graduated non-convexity): every pair penalty of
-/// the TTC and conflict terms is at most `1 / epsilon`, and each merge slot of the ego is a
-/// basin of the potential between two pairs' ridges of that height. Training starts with the
-/// ridges low (`epsilon_start` above `reward.epsilon`) and raises them to the configured game's
-/// over `epochs`; the probe, screening and every evaluation use the configured reward.
+/// the TTC and conflict terms is at most `1 / epsilon`, the height of the ridge between two
+/// merge slots of the ego. Training starts with the ridges low (`epsilon_start` above
+/// `reward.epsilon`) and raises them to the configured game's over `epochs`; the probe,
+/// screening and every evaluation use the configured reward.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ContinuationConfig {

@@ -271,7 +271,6 @@ impl Stack {
         let members = self.seeds.len();
         let mut epoch_config = config.clone();
         epoch_config.reward.epsilon = training_epsilon(config, epoch);
-        let epoch_config = std::sync::Arc::new(epoch_config);
         let shards = shards_of(&self.net, &scenes, members);
         let mode = self.mode;
         let results = workers.run(shards, move |(net, scenes)| {
