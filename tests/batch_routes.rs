@@ -1,6 +1,6 @@
 //! `mpgdrive routes` as a library: Poisson demand from the I-80 base file, shares and seeds.
 
-use mpgdrive::batch::routes::{DemandSpec, generate};
+use mpgdrive::batch::routes::{DemandSpec, Streams, generate};
 use mpgdrive::sumo::MergeGeometry;
 use std::path::{Path, PathBuf};
 
@@ -45,6 +45,7 @@ fn demand_scales_shares_and_seeds() {
         mainline_share: None,
         seeds: vec![0, 1],
         duration: 3600.0,
+        streams: Default::default(),
     };
     let manifest = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
     assert_eq!(manifest.len(), 4);
@@ -93,6 +94,7 @@ fn out_of_range_shares_are_refused() {
         mainline_share: None,
         seeds: vec![0],
         duration: 60.0,
+        streams: Default::default(),
     };
     let err = generate(&base, std::slice::from_ref(&geometry), &spec, &out_dir("bad")).unwrap_err();
     assert!(err.to_string().contains("--ramp-share 1.5"), "{err}");
@@ -109,6 +111,7 @@ fn a_controllable_share_sweep_keeps_the_arrivals_and_changes_the_types() {
         mainline_share: None,
         seeds: vec![3],
         duration: 300.0,
+        streams: Default::default(),
     };
     let manifest = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
     let files: Vec<(&str, Option<f64>)> = manifest
@@ -148,6 +151,7 @@ fn regression_fuzz_a_nan_begin_or_an_absurd_rate_is_refused_not_looped_on() {
         mainline_share: None,
         seeds: vec![0],
         duration: 900.0,
+        streams: Default::default(),
     };
     for (from, to, needle) in [
         (
@@ -180,6 +184,7 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
         mainline_share: share,
         seeds: vec![3],
         duration: 900.0,
+        streams: Default::default(),
     };
     let plain = generate(&base, std::slice::from_ref(&geometry), &spec(None), &out).unwrap();
     let mixed = generate(&base, std::slice::from_ref(&geometry), &spec(Some(0.3)), &out).unwrap();
@@ -219,6 +224,58 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
     assert!(
         err.to_string()
             .contains("needs a vType of a controllable type (ctrl)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn each_stream_alone_keeps_its_vehicles_of_the_file_of_all_flows() {
+    let (base, geometry) = i80();
+    let out = out_dir("streams");
+    let spec = |streams| DemandSpec {
+        scales: vec![1.2],
+        ramp_share: None,
+        controllable_shares: vec![0.3],
+        mainline_share: Some(0.3),
+        seeds: vec![5],
+        duration: 300.0,
+        streams,
+    };
+    let write = |streams| generate(&base, std::slice::from_ref(&geometry), &spec(streams), &out).unwrap();
+    let (all, ramp, freeway) = (write(Streams::All), write(Streams::Ramp), write(Streams::Freeway));
+    assert_eq!(ramp[0].file, "i80_d1.20_m0.30_ramp_s5.rou.xml");
+    assert_eq!(freeway[0].file, "i80_d1.20_m0.30_freeway_s5.rou.xml");
+    assert_eq!(ramp[0].streams, Streams::Ramp);
+    let every = vehicles(&out.join(&all[0].file));
+    let (r, f) = (
+        vehicles(&out.join(&ramp[0].file)),
+        vehicles(&out.join(&freeway[0].file)),
+    );
+    // The ramp's file holds exactly the vehicles of the route "onramp", the freeway's the
+    // others, each with its departure and type; together they are the whole file.
+    let split = |onramp: bool| -> Vec<_> {
+        every
+            .iter()
+            .filter(|v| (v.2 == "onramp") == onramp)
+            .cloned()
+            .collect()
+    };
+    assert_eq!(r, split(true));
+    assert_eq!(f, split(false));
+    assert!(!r.is_empty() && !f.is_empty());
+    assert_eq!(r.len() + f.len(), all[0].vehicles);
+    // A stream the file does not have is refused.
+    let bare = out.join("bare.rou.xml");
+    std::fs::write(
+        &bare,
+        r#"<routes><vType id="human"/><route id="freeway" edges="approach main1"/><flow id="f" type="human" route="freeway" begin="0" end="60" vehsPerHour="600"/></routes>"#,
+    )
+    .unwrap();
+    let mut only_ramp = spec(Streams::Ramp);
+    only_ramp.mainline_share = None;
+    let err = generate(&bare, std::slice::from_ref(&geometry), &only_ramp, &out).unwrap_err();
+    assert!(
+        err.to_string().contains("the base file has no ramp flow"),
         "{err}"
     );
 }

@@ -204,6 +204,7 @@ fn fuzz_route_generator_base_file() {
         mainline_share: None,
         seeds: vec![0],
         duration: 30.0,
+        streams: Default::default(),
     };
     let corpus = seeds(&[
         "sumo_nets/i80_merge/i80.rou.xml",

@@ -6,7 +6,9 @@
 mod common;
 
 use common::fresh_dir;
-use mpgdrive::batch::penetration::{Conflicts, Quantity, StudyRun, Trips, break_even, rows};
+use mpgdrive::batch::penetration::{
+    Conflicts, Quantity, Spread, StudyRun, Trips, apart, break_even, markdown, merge_cost_removed, rows,
+};
 
 #[test]
 fn trips_count_every_vehicle_with_its_insertion_delay() {
@@ -111,6 +113,34 @@ fn the_game_beats_its_drivers_from_the_share_on_which_it_stays_below() {
     assert_eq!(break_even(&rows(&study([10.0, 9.0, 9.0, 10.5]))), None);
 }
 
+#[test]
+fn the_merge_costs_what_the_streams_lose_together_beyond_what_they_lose_apart() {
+    let trips = |vehicles, time_loss| Trips {
+        vehicles,
+        time_loss,
+        ..Trips::default()
+    };
+    // 2 ramp vehicles losing 6 s in all, 3 freeway vehicles losing 9 s: 3 s per vehicle.
+    assert_eq!(apart(&trips(2, 6.0), &trips(3, 9.0)), Some(3.0));
+    assert_eq!(apart(&trips(0, 0.0), &trips(0, 0.0)), None);
+    // At 30% the game loses 9.5 s and SUMO's drivers 10.5 s (over two seeds); apart 6.5 s: the
+    // merge costs 4 s, of which the game saves 1 s, a quarter.
+    let r = rows(&study([10.0, 11.0, 9.0, 8.0]));
+    assert!((merge_cost_removed(&r[2], 6.5).unwrap() - 0.25).abs() < 1e-12);
+    assert_eq!(
+        merge_cost_removed(&r[2], 10.5),
+        None,
+        "a merge that costs nothing"
+    );
+    let md = markdown(&r, Some(Spread::of(&[6.0, 7.0])));
+    // SUMO's drivers at share 0: 10.5 s; apart 6.5 s, 0.619 times theirs.
+    assert!(
+        md.contains("lose 6.50 ± 0.71 s per vehicle: 0.619 times SUMO's drivers' 10.50 s"),
+        "{md}"
+    );
+    assert!(md.contains("| 30% | 25.0% |"), "{md}");
+}
+
 /// A one-lane 30 m/s freeway with a 150 m acceleration lane, 900 + 400 veh/h for 120 s, built
 /// with `net build` in `dir/net`; its .sumocfg.
 #[cfg(feature = "sumo")]
@@ -181,6 +211,41 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
     assert!(!csv.contains("1,UncontrolledTimeLoss"));
     let md = std::fs::read_to_string(study.join("study.md")).unwrap();
     assert!(md.contains("| 100% | 1 |"), "{md}");
+    // The streams apart: the ramp's and the freeway's vehicles of the share-0 routes, each in a
+    // run of its own; their time loss per vehicle, read here from SUMO's files.
+    let tripinfo = |dir: &str| -> Vec<f64> {
+        let work = study.join(dir).join("work");
+        let run = std::fs::read_dir(&work)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.to_string_lossy().ends_with("__sumo__s0"))
+            .unwrap();
+        let text = std::fs::read_to_string(run.join("tripinfo-sumo.xml")).unwrap();
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        doc.descendants()
+            .filter(|n| n.has_tag_name("tripinfo"))
+            .map(|n| {
+                let num = |k: &str| n.attribute(k).unwrap().parse::<f64>().unwrap();
+                num("timeLoss") + num("departDelay").max(0.0)
+            })
+            .collect()
+    };
+    let (ramp, freeway, both) = (
+        tripinfo("apart/ramp"),
+        tripinfo("apart/freeway"),
+        tripinfo("share_000.0"),
+    );
+    assert!(!ramp.is_empty() && !freeway.is_empty());
+    assert_eq!(ramp.len() + freeway.len(), both.len());
+    let apart = (ramp.iter().sum::<f64>() + freeway.iter().sum::<f64>()) / both.len() as f64;
+    assert!(
+        (value("0", "TimeLoss", "apart") - apart).abs() < 1e-5,
+        "{apart}\n{csv}"
+    );
+    assert!(
+        md.contains(&format!("lose {apart:.2} ± 0.00 s per vehicle")),
+        "{md}"
+    );
     assert!(study.join("study.png").is_file());
     // At a share of 1 every vehicle is controllable: the controllable players are every
     // player, and the game drives exactly as with `players = "all"`.

@@ -14,6 +14,12 @@
 //! - **conflicts** per vehicle-km: SUMO's SSM conflicts at the thresholds `cosim` sets (TTC < 3 s
 //!   or DRAC > 3 m/s^2), and the severe ones (minimum TTC below [`SEVERE_TTC`]), over the
 //!   distance every vehicle drove (`routeLength`).
+//!
+//! The merge's own cost: the same arrivals with the ramp's flows and the freeway's flows in
+//! separate runs of SUMO's drivers, where the streams never meet ([`apart`]). Their time loss
+//! is what every vehicle would lose if merging cost nothing; the difference to SUMO's drivers
+//! with both streams is what the merge costs, and [`merge_cost_removed`] the part of it the
+//! game saves.
 
 use crate::batch::summary::mean_sd;
 use crate::render::RenderError;
@@ -102,6 +108,25 @@ impl Trips {
         }
         Ok(trips)
     }
+}
+
+/// The mean time loss of every vehicle of one seed's arrivals, insertion delay included, when
+/// the ramp's flows (`ramp`) and the freeway's flows (`freeway`) run apart; none without
+/// vehicles.
+pub fn apart(ramp: &Trips, freeway: &Trips) -> Option<f64> {
+    let n = ramp.vehicles + freeway.vehicles;
+    (n > 0).then(|| (ramp.time_loss + freeway.time_loss) / n as f64)
+}
+
+/// The part of the merge's cost the game saves at `row`'s share: SUMO's drivers' mean time
+/// loss of every vehicle less the game's, over SUMO's drivers' less the streams' apart
+/// (`apart`, s per vehicle); none where a figure is missing or the merge costs nothing.
+pub fn merge_cost_removed(row: &ShareRow, apart: f64) -> Option<f64> {
+    let (g, s) = (
+        row.game.get(&Quantity::TimeLoss)?.mean,
+        row.sumo.get(&Quantity::TimeLoss)?.mean,
+    );
+    (s > apart).then(|| (s - g) / (s - apart))
 }
 
 /// SUMO's SSM conflicts of one run.
@@ -325,8 +350,9 @@ fn decimals(q: Quantity) -> usize {
 
 /// The study as Markdown: per share, each quantity for the game and SUMO's drivers (mean ±
 /// sample standard deviation over seeds) in two tables (delay and flow; speed, conflicts and
-/// collisions), and the share from which the game beats SUMO's drivers.
-pub fn markdown(rows: &[ShareRow]) -> String {
+/// collisions), the share from which the game beats SUMO's drivers, and with the streams'
+/// time loss apart (over seeds, [`apart`]) the merge's cost and the part of it the game saves.
+pub fn markdown(rows: &[ShareRow], apart: Option<Spread>) -> String {
     let table = |quantities: &[Quantity], (head, value): (&str, fn(&ShareRow) -> String)| {
         let mut md = String::from("| controllable share | seeds |");
         for q in quantities {
@@ -381,12 +407,42 @@ pub fn markdown(rows: &[ShareRow]) -> String {
         ),
         (None, None) => String::new(),
     };
+    if let (Some(a), Some(sumo)) = (apart, rows.first().and_then(|r| r.sumo.get(&Quantity::TimeLoss))) {
+        md += &format!(
+            "\n## The merge's own cost\n\nOn the same arrivals, SUMO's drivers with the ramp's flows and the \
+             freeway's flows in separate runs (the streams never meet) lose {:.2} ± {:.2} s per vehicle: \
+             {:.3} times SUMO's drivers' {:.2} s with both streams at a share of {:.0}%. The difference, \
+             {:.2} s per vehicle, is what the merge costs. The part of it the game saves:\n\n\
+             | controllable share | SUMO's drivers' time loss less the game's, over the merge's cost |\n|---|---|\n",
+            a.mean,
+            a.sd,
+            a.mean / sumo.mean,
+            sumo.mean,
+            rows[0].share * 100.0,
+            sumo.mean - a.mean
+        );
+        for r in rows.iter().filter(|r| r.share > 0.0) {
+            let cell =
+                merge_cost_removed(r, a.mean).map_or_else(|| "-".into(), |x| format!("{:.1}%", x * 100.0));
+            md += &format!("| {:.0}% | {cell} |\n", r.share * 100.0);
+        }
+    }
     md
 }
 
-/// The study as CSV: one line per share, quantity and side.
-pub fn csv(rows: &[ShareRow]) -> String {
+/// The study as CSV: one line per share, quantity and side; the streams' time loss apart, if
+/// given, as side `apart` at share 0.
+pub fn csv(rows: &[ShareRow], apart: Option<Spread>) -> String {
     let mut out = String::from("share,quantity,side,mean,sd,runs\n");
+    if let Some(a) = apart {
+        out += &format!(
+            "0,{:?},apart,{:.6},{:.6},{}\n",
+            Quantity::TimeLoss,
+            a.mean,
+            a.sd,
+            a.runs
+        );
+    }
     for r in rows {
         for q in Quantity::ALL {
             for (side, map) in [("game", &r.game), ("sumo", &r.sumo)] {
@@ -400,8 +456,9 @@ pub fn csv(rows: &[ShareRow]) -> String {
 }
 
 /// Draws the study into `path`: one panel per quantity against the share, the game and SUMO's
-/// drivers, each the mean over seeds with a band of one sample standard deviation.
-pub fn plot(rows: &[ShareRow], path: &Path) -> Result<(), RenderError> {
+/// drivers, each the mean over seeds with a band of one sample standard deviation; the time
+/// loss panel also has the streams' apart, if given.
+pub fn plot(rows: &[ShareRow], apart: Option<Spread>, path: &Path) -> Result<(), RenderError> {
     let side = |label: &str, pick: fn(&ShareRow) -> &BTreeMap<Quantity, Spread>, q: Quantity| {
         let points: Vec<(f64, Spread)> = rows
             .iter()
@@ -425,13 +482,19 @@ pub fn plot(rows: &[ShareRow], path: &Path) -> Result<(), RenderError> {
                 x_label: "controllable vehicles, % of all".into(),
                 y_label: unit.into(),
             };
-            (
-                panel,
-                vec![
-                    side("the game", |r| &r.game, q),
-                    side("SUMO's drivers", |r| &r.sumo, q),
-                ],
-            )
+            let mut series = vec![
+                side("the game", |r| &r.game, q),
+                side("SUMO's drivers", |r| &r.sumo, q),
+            ];
+            if let Some(a) = apart.filter(|_| q == Quantity::TimeLoss) {
+                let xs: Vec<f64> = rows.iter().map(|r| r.share * 100.0).collect();
+                series.push(Series {
+                    label: "each stream alone".into(),
+                    points: xs.iter().map(|&x| (x, a.mean)).collect(),
+                    band: xs.iter().map(|&x| (x, a.mean - a.sd, a.mean + a.sd)).collect(),
+                });
+            }
+            (panel, series)
         })
         .collect();
     panels_png(path, (1000, 1500), &panels)

@@ -38,6 +38,45 @@ pub struct DemandSpec {
     pub seeds: Vec<u64>,
     /// Departures up to this time (s), within each flow's begin and end.
     pub duration: f64,
+    /// Which flows the files carry; a flow's arrivals do not depend on it.
+    pub streams: Streams,
+}
+
+/// Which of the base file's flows a route file carries.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Streams {
+    /// Every flow.
+    #[default]
+    All,
+    /// The ramp flows alone.
+    Ramp,
+    /// The freeway flows alone.
+    Freeway,
+}
+
+impl Streams {
+    /// Whether a file of these streams carries a flow that is (`ramp`) or is not a ramp flow.
+    fn carries(self, ramp: bool) -> bool {
+        match self {
+            Streams::All => true,
+            Streams::Ramp => ramp,
+            Streams::Freeway => !ramp,
+        }
+    }
+
+    /// What it is called in file names and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Streams::All => "all",
+            Streams::Ramp => "ramp",
+            Streams::Freeway => "freeway",
+        }
+    }
+
+    fn is_all(&self) -> bool {
+        *self == Streams::All
+    }
 }
 
 /// One generated file, as listed in `manifest.json`.
@@ -56,6 +95,9 @@ pub struct ManifestEntry {
     pub mainline_share: Option<f64>,
     /// Seed of the arrivals and type draws.
     pub seed: u64,
+    /// Which flows the file carries.
+    #[serde(default, skip_serializing_if = "Streams::is_all")]
+    pub streams: Streams,
     /// Vehicles written.
     pub vehicles: usize,
 }
@@ -328,6 +370,12 @@ pub fn generate(
         }
         _ => 1.0,
     };
+    if !base.flows.iter().any(|f| spec.streams.carries(f.ramp)) {
+        return Err(RoutesError::Invalid(format!(
+            "the base file has no {} flow",
+            spec.streams.name()
+        )));
+    }
     if spec.ramp_share.is_some() && !(ramp > 0.0 && ramp < total) {
         return Err(RoutesError::Invalid(
             "--ramp-share needs both ramp and freeway flows in the base file".into(),
@@ -361,7 +409,7 @@ pub fn generate(
             let mut vehicles: Vec<(f64, String)> = Vec::new();
             for (k, flow) in base.flows.iter().enumerate() {
                 let rate = flow.per_hour * scale * factor(flow) / 3600.0;
-                if rate <= 0.0 {
+                if rate <= 0.0 || !spec.streams.carries(flow.ramp) {
                     continue;
                 }
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -421,13 +469,21 @@ pub fn generate(
                 _ => String::new(),
             };
             let mainline = spec.mainline_share.map_or(String::new(), |m| format!("_m{m:.2}"));
-            let file = format!("{stem}_d{scale:.2}{swept}{mainline}_s{seed}.rou.xml");
+            let streams = match spec.streams {
+                Streams::All => String::new(),
+                only => format!("_{}", only.name()),
+            };
+            let file = format!("{stem}_d{scale:.2}{swept}{mainline}{streams}_s{seed}.rou.xml");
             let mut xml = format!(
-                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, mainline controllable share {:?}, seed {seed}, {} s -->\n<routes>\n",
+                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, mainline controllable share {:?}{}, seed {seed}, {} s -->\n<routes>\n",
                 base_path.display(),
                 spec.ramp_share,
                 share,
                 spec.mainline_share,
+                match spec.streams {
+                    Streams::All => String::new(),
+                    only => format!(", only the {} flows", only.name()),
+                },
                 spec.duration
             );
             for v in &base.verbatim {
@@ -447,6 +503,7 @@ pub fn generate(
                 controllable_share: share,
                 mainline_share: spec.mainline_share,
                 seed,
+                streams: spec.streams,
                 vehicles: vehicles.len(),
             });
         }

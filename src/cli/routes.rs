@@ -3,7 +3,7 @@
 use crate::cli::common::{print, usage};
 use anyhow::Result;
 use clap::Args;
-use mpgdrive::batch::routes::{DemandSpec, generate};
+use mpgdrive::batch::routes::{DemandSpec, Streams, generate};
 use mpgdrive::sumo::MergeGeometry;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -37,9 +37,31 @@ pub struct RoutesArgs {
     /// Departures over this many seconds.
     #[arg(long, default_value_t = 900.0)]
     duration: f64,
+    /// Which flows the files carry: all, or the ramp's or the freeway's alone (with the
+    /// arrivals they have in the file of all flows; `_ramp` or `_freeway` in the name).
+    #[arg(long, value_enum, default_value = "all")]
+    streams: StreamChoice,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
+}
+
+/// `--streams`.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum StreamChoice {
+    All,
+    Ramp,
+    Freeway,
+}
+
+impl From<StreamChoice> for Streams {
+    fn from(c: StreamChoice) -> Streams {
+        match c {
+            StreamChoice::All => Streams::All,
+            StreamChoice::Ramp => Streams::Ramp,
+            StreamChoice::Freeway => Streams::Freeway,
+        }
+    }
 }
 
 fn parse_scales(text: &str) -> Result<Vec<f64>> {
@@ -87,6 +109,7 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         mainline_share: args.mainline_controllable_share,
         seeds: args.seeds,
         duration: args.duration,
+        streams: args.streams.into(),
     };
     let manifest = generate(&args.base, &merges, &spec, &args.out)?;
     for m in &manifest {

@@ -9,8 +9,8 @@ use anyhow::{Context, Result};
 use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::batch::capacity::{self, SweepRun};
-use mpgdrive::batch::penetration::{self, Conflicts, StudyRun, Trips};
-use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, generate};
+use mpgdrive::batch::penetration::{self, Conflicts, Spread, StudyRun, Trips};
+use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, Streams, generate};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, Combo, run_batch};
 use mpgdrive::config::Config;
 use mpgdrive::policy::Mode;
@@ -60,8 +60,9 @@ pub struct StudyArgs {
     /// Worker processes at a time (default: the number of cores).
     #[arg(long)]
     jobs: Option<usize>,
-    /// Output directory: study.md, study.csv, study.png, merge.toml and one batch folder per
-    /// share (share_<percent>/: routes, runs, SUMO's outputs).
+    /// Output directory: study.md, study.csv, study.png, merge.toml, one batch folder per
+    /// share (share_<percent>/: routes, runs, SUMO's outputs) and apart/ (SUMO's drivers on the
+    /// ramp's and the freeway's flows alone: the merge's own cost).
     #[arg(long)]
     out: PathBuf,
     /// Skip runs whose result is already in --out.
@@ -120,11 +121,12 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
     let flag = stop.clone();
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
         .context("installing the Ctrl-C handler")?;
-    // Every batch of runs of one demand and share: the route files, then the runs.
+    // Every batch of runs of one demand, share and streams: the route files, then the runs.
     let batch = |dir: &Path,
                  demand: f64,
                  share: f64,
-                 controllers: &[&str]|
+                 controllers: &[&str],
+                 streams: Streams|
      -> Result<Option<Vec<(ManifestEntry, Combo)>>> {
         let spec = DemandSpec {
             scales: vec![demand],
@@ -133,6 +135,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             mainline_share: Some(share),
             seeds: args.seeds.clone(),
             duration: args.end,
+            streams,
         };
         let manifest = generate(&base, &merges, &spec, &dir.join("routes"))?;
         let mut todo = Vec::new();
@@ -148,8 +151,9 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             }));
         }
         eprintln!(
-            "study: demand {demand}, controllable share {:.0}%: {} runs",
+            "study: demand {demand}, controllable share {:.0}%, {} flows: {} runs",
             share * 100.0,
+            streams.name(),
             todo.len()
         );
         let combos: Vec<Combo> = todo.iter().map(|(_, c)| c.clone()).collect();
@@ -183,7 +187,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
         let mut sweep = Vec::new();
         for &d in &args.capacity {
             let dir = args.out.join("capacity").join(format!("demand_{d}"));
-            let Some(done) = batch(&dir, d, 0.0, &["sumo"])? else {
+            let Some(done) = batch(&dir, d, 0.0, &["sumo"], Streams::All)? else {
                 return Ok(ExitCode::from(130));
             };
             for (m, combo) in &done {
@@ -208,13 +212,33 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
     let mut runs = Vec::new();
     for &share in &args.shares {
         let dir = args.out.join(share_folder(share));
-        let Some(done) = batch(&dir, demand, share, &CONTROLLERS)? else {
+        let Some(done) = batch(&dir, demand, share, &CONTROLLERS, Streams::All)? else {
             return Ok(ExitCode::from(130));
         };
         for (_, combo) in &done {
             runs.push(read(&dir, share, combo)?);
         }
     }
+    // The merge's own cost: each seed's ramp and freeway flows in runs of their own.
+    let mut alone: Vec<(u64, Trips)> = Vec::new();
+    for streams in [Streams::Ramp, Streams::Freeway] {
+        let dir = args.out.join("apart").join(streams.name());
+        let Some(done) = batch(&dir, demand, 0.0, &["sumo"], streams)? else {
+            return Ok(ExitCode::from(130));
+        };
+        for (_, combo) in &done {
+            alone.push((combo.seed, read(&dir, 0.0, combo)?.trips));
+        }
+    }
+    let per_seed: Vec<f64> = args
+        .seeds
+        .iter()
+        .filter_map(|seed| {
+            let mut of_seed = alone.iter().filter(|(s, _)| s == seed).map(|(_, t)| t);
+            penetration::apart(of_seed.next()?, of_seed.next()?)
+        })
+        .collect();
+    let apart = (!per_seed.is_empty()).then(|| Spread::of(&per_seed));
     let rows = penetration::rows(&runs);
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let title = format!(
@@ -230,10 +254,11 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             .join(", "),
         args.end
     );
-    let md = title + &capacity_md + &penetration::markdown(&rows);
+    let md = title + &capacity_md + &penetration::markdown(&rows, apart);
     atomic::write(&args.out.join("study.md"), &md).context("writing study.md")?;
-    atomic::write(&args.out.join("study.csv"), penetration::csv(&rows)).context("writing study.csv")?;
-    penetration::plot(&rows, &args.out.join("study.png"))?;
+    atomic::write(&args.out.join("study.csv"), penetration::csv(&rows, apart))
+        .context("writing study.csv")?;
+    penetration::plot(&rows, apart, &args.out.join("study.png"))?;
     print(&md)?;
     Ok(ExitCode::SUCCESS)
 }
