@@ -12,6 +12,8 @@
                                       SPEED_MODE=25 scripts/zoo_acceptance.sh DIR
     scripts/results.py study DIR      the penetration study, from `mpgdrive study --out DIR`
                                       (its table, and its plot as docs/results/study.png)
+    scripts/results.py study-zoo DIR  the penetration study on a zoo network, from
+                                      scripts/zoo_study.sh NAME DIR (docs/results/study-zoo.md)
 
 Each writes docs/results/KIND.md, then docs/results/summary.md from all of them and README's
 results block. Every file's first line records the policy files and configuration it
@@ -36,14 +38,16 @@ PAPER_INPUTS = ["configs/paper.toml", "policies/mpg/*.json", "policies/mpg/*.saf
 TRAFFIC_INPUTS = ["configs/traffic.toml", "policies/traffic/*/*.json",
                   "policies/traffic/*/*.safetensors"]
 INPUTS = {"paper": PAPER_INPUTS, "traffic": TRAFFIC_INPUTS, "grid": TRAFFIC_INPUTS,
-          "zoo": TRAFFIC_INPUTS, "zoo-shielded": TRAFFIC_INPUTS, "study": TRAFFIC_INPUTS}
-FOLDERS = ("grid", "zoo", "zoo-shielded", "study")
+          "zoo": TRAFFIC_INPUTS, "zoo-shielded": TRAFFIC_INPUTS, "study": TRAFFIC_INPUTS,
+          "study-zoo": TRAFFIC_INPUTS}
+FOLDERS = ("grid", "zoo", "zoo-shielded", "study", "study-zoo")
 TITLES = {"paper": "The paper's study (Tables II and III, claims, scenarios)",
           "traffic": "The traffic policies in their own world",
           "grid": "The traffic policies in SUMO on the bundled networks",
           "zoo": "The traffic policies in SUMO on the merge zoo",
           "zoo-shielded": "The traffic policies in SUMO on the merge zoo, SUMO's safe speed as a shield",
-          "study": "The game against SUMO's drivers, by share of controllable vehicles"}
+          "study": "The game against SUMO's drivers, by share of controllable vehicles",
+          "study-zoo": "The game against SUMO's drivers on a zoo network, by share of controllable vehicles"}
 README_BEGIN = "<!-- results: docs/results/summary.md -->"
 README_END = "<!-- /results -->"
 
@@ -160,23 +164,37 @@ def acceptance(kind, folder):
           + body)
 
 
-def study(folder):
-    """docs/results/study.md and study.png from a `mpgdrive study` output folder."""
+def study(kind, folder):
+    """docs/results/KIND.md and KIND.png from a `mpgdrive study` output folder (study), or from
+    scripts/zoo_study.sh's output folder (study-zoo: its study/ and the network's name)."""
+    network = ""
+    if kind == "study-zoo":
+        zoo = os.path.join(folder, "zoo.txt")
+        if not os.path.isfile(zoo):
+            sys.exit(f"results: {zoo} does not exist (run `scripts/zoo_study.sh NAME {folder}` first)")
+        name, build = open(zoo).read().strip().split(": ", 1)
+        network = (f"Network: the zoo's `{name}`, built by `mpgdrive net build {build}` "
+                   "(scripts/zoo_nets.sh).\n\n")
+        command = f"scripts/zoo_study.sh {name} DIR ... && scripts/results.py study-zoo DIR"
+        folder = os.path.join(folder, "study")
+    else:
+        command = "mpgdrive study --out DIR && scripts/results.py study DIR"
     path = os.path.join(folder, "study.md")
     if not os.path.isfile(path):
         sys.exit(f"results: {path} does not exist (run `mpgdrive study --out {folder}` first)")
-    write("study.md", header("study", f"mpgdrive study --out DIR && scripts/results.py study DIR")
-          + open(path).read() + "\n![The penetration study](study.png)\n")
-    fd, tmp = tempfile.mkstemp(dir=RESULTS, prefix=".study.png.")
+    write(f"{kind}.md", header(kind, command) + network + open(path).read()
+          + f"\n![The penetration study]({kind}.png)\n")
+    fd, tmp = tempfile.mkstemp(dir=RESULTS, prefix=f".{kind}.png.")
     with os.fdopen(fd, "wb") as h, open(os.path.join(folder, "study.png"), "rb") as png:
         h.write(png.read())
-    os.replace(tmp, os.path.join(RESULTS, "study.png"))
+    os.replace(tmp, os.path.join(RESULTS, f"{kind}.png"))
 
 
-def study_rows():
-    """The summary's lines from docs/results/study.md: the time-loss ratio by share, the share
-    from which the game beats SUMO's drivers, and the merge's capacity when the study swept it."""
-    path = os.path.join(RESULTS, "study.md")
+def study_rows(kind):
+    """The summary's lines from docs/results/KIND.md (a study): the time-loss ratio by share,
+    the share from which the game beats SUMO's drivers, the merge's own cost and the part of
+    it the game saves, and the merge's capacity when the study swept it."""
+    path = os.path.join(RESULTS, f"{kind}.md")
     if not os.path.isfile(path):
         return []
     text = open(path).read()
@@ -184,18 +202,31 @@ def study_rows():
             if re.match(r"\| \d+% \|", line)] if "\n\n| controllable share" in text else []
     ratios = [(c[0].strip(), c[-1].strip()) for c in rows if c[0].strip() != "0%"]
     net = re.search(r"`([^`]*)\.sumocfg`, demand ([\d.]+)", text)
+    zoo = re.search(r"^Network: the zoo's `([^`]*)`", text, re.M)
     seeds = re.search(r"seeds ([\d, ]+), ([\d.]+) s runs", text)
-    setting = (f"{os.path.basename(os.path.dirname(net.group(1)))}, demand {net.group(2)}, "
-               f"seeds {seeds.group(1)}, {seeds.group(2)} s" if net and seeds else "?")
+    name = zoo.group(1) if zoo else os.path.basename(os.path.dirname(net.group(1))) if net else "?"
+    setting = (f"{name}, demand {net.group(2)}, seeds {seeds.group(1)}, {seeds.group(2)} s"
+               if net and seeds else "?")
     verdict = re.search(r"^(The game('s)? .*)$", text, re.M)
     capacity = re.search(r"^(The merge (breaks|does not break) .*)$", text, re.M)
-    return [
+    cost = re.search(r"lose ([\d.]+) ± [\d.]+ s per vehicle: ([\d.]+) times SUMO's drivers' "
+                     r"([\d.]+) s", text)
+    saved = re.findall(r"^\| (\d+%) \| (-?[\d.]+%|-) \|$", text.split("## The merge's own cost")[-1], re.M)
+    out = [
         f"| Penetration study ({setting}): time loss of every vehicle, the game / SUMO's drivers "
         f"alone, at {' / '.join(r[0] for r in ratios)} controllable vehicles "
-        f"| {' / '.join(r[1] for r in ratios)} | `study.md` |",
-        f"| {verdict.group(1) if verdict else '?'} | | `study.md` |",
-    ] + ([f"| Capacity of the merge, SUMO's drivers alone ({setting.split(', demand')[0]}): "
-          f"{capacity.group(1)} | | `study.md` |"] if capacity else [])
+        f"| {' / '.join(r[1] for r in ratios)} | `{kind}.md` |",
+        f"| {verdict.group(1) if verdict else '?'} | | `{kind}.md` |",
+    ]
+    if cost and saved:
+        out.append(f"| {name}: each stream alone (the merge costing nothing), time loss / SUMO's "
+                   f"drivers' with both; the part of the merge's cost the game saves at "
+                   f"{' / '.join(s[0] for s in saved)} | {cost.group(2)}; {' / '.join(s[1] for s in saved)} "
+                   f"| `{kind}.md` |")
+    if capacity:
+        out.append(f"| Capacity of the merge, SUMO's drivers alone ({setting.split(', demand')[0]}): "
+                   f"{capacity.group(1)} | | `{kind}.md` |")
+    return out
 
 
 def deployments(kind):
@@ -215,7 +246,7 @@ def summary():
     def cell(pattern, text):
         m = re.search(pattern, text, re.M)
         return m.group(1).strip() if m else "?"
-    rows = study_rows()
+    rows = study_rows("study") + study_rows("study-zoo")
     paper_md = open(os.path.join(RESULTS, "paper.md")).read()
     t2 = paper_md.split("Statistical results: Single-agent RL")[0]
     ne_idm = cell(r"^\| Collision rate \| (.*?) \|$", t2).replace("/500", "").replace(" | ", " / ")
@@ -281,8 +312,8 @@ def main():
         paper()
     elif kind == "traffic":
         traffic()
-    elif kind == "study":
-        study(args[1])
+    elif kind in ("study", "study-zoo"):
+        study(kind, args[1])
     else:
         acceptance(kind, args[1])
     summary()

@@ -12,33 +12,17 @@
 #   scripts/zoo_acceptance.sh OUT
 #
 # Environment: the same as scripts/traffic_acceptance.sh (END defaults to 600 here; SEEDS,
-# SCALES, SPEED_MODE, ...), and NETS: a space-separated subset of the names below.
+# SCALES, SPEED_MODE, ...), and NETS: a space-separated subset of the names in scripts/zoo_nets.sh.
 set -euo pipefail
 out=${1:?usage: scripts/zoo_acceptance.sh OUT}
 bin=${MPGDRIVE:-target/release/mpgdrive}
-# name: net build arguments (demand per freeway lane and on the ramp, veh/h, before scaling)
-declare -A zoo=(
-    [acc60-v20]="--form acceleration --accel-lane 60 --speed 20 --lane-flow 900"
-    [acc60-v30]="--form acceleration --accel-lane 60 --speed 30 --lane-flow 900"
-    [acc60-v36]="--form acceleration --accel-lane 60 --speed 36 --lane-flow 900"
-    [acc250-v20]="--form acceleration --accel-lane 250 --speed 20 --lane-flow 900"
-    [acc250-v30-curved]="--form acceleration --accel-lane 250 --speed 30 --lane-flow 900 --curved"
-    [acc250-v36]="--form acceleration --accel-lane 250 --speed 36 --lane-flow 900"
-    [acc150-v30-l3]="--form acceleration --accel-lane 150 --speed 30 --lanes 3 --lane-flow 700"
-    [junction-v20]="--form junction --speed 20 --lane-flow 600"
-    [junction-v20-signal]="--form junction --speed 20 --lane-flow 600 --signal"
-    [junction-v30-curved]="--form junction --speed 30 --lane-flow 600 --curved"
-    [junction-v36]="--form junction --speed 36 --lane-flow 600"
-    [junction-v30-l3]="--form junction --speed 30 --lanes 3 --lane-flow 300"
-    [lanedrop-v25-l2]="--form lane-drop --speed 25 --lanes 2 --lane-flow 700"
-)
+# shellcheck source=scripts/zoo_nets.sh
+. "$(dirname "$0")/zoo_nets.sh"
 names=${NETS:-${!zoo[*]}}
 dirs=()
 for name in $names; do
-    [ -n "${zoo[$name]:-}" ] || { echo "zoo_acceptance: no network named $name" >&2; exit 2; }
     dir="$out/nets/$name"
-    # shellcheck disable=SC2086 # the arguments are words
-    "$bin" net build ${zoo[$name]} --ramp-flow 400 --duration "${END:-600}" --out "$dir" 2>/dev/null
+    zoo_build "$name" "$dir" "${END:-600}" || exit 2
     dirs+=("$dir")
 done
 END=${END:-600} SPEED_RATIO=${SPEED_RATIO:-0.9} SSM_POINTS=${SSM_POINTS:-5} \

@@ -279,3 +279,55 @@ fn each_stream_alone_keeps_its_vehicles_of_the_file_of_all_flows() {
         "{err}"
     );
 }
+
+#[test]
+fn a_controllable_share_applies_to_a_ramp_flow_of_a_plain_controllable_type() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("sumo_nets/single_lane_merge");
+    let (base, geometry) = (
+        dir.join("merge.rou.xml"),
+        MergeGeometry::load(&dir.join("merge.toml")).unwrap(),
+    );
+    let out = out_dir("plain-ctrl");
+    let spec = |shares: Vec<f64>| DemandSpec {
+        scales: vec![1.2],
+        ramp_share: None,
+        controllable_shares: shares,
+        mainline_share: None,
+        seeds: vec![1],
+        duration: 300.0,
+        streams: Streams::All,
+    };
+    let files = |shares| generate(&base, std::slice::from_ref(&geometry), &spec(shares), &out).unwrap();
+    let plain = vehicles(&out.join(&files(vec![])[0].file));
+    let swept = files(vec![0.0, 0.3, 1.0]);
+    let ramp_types = |k: usize| -> Vec<String> {
+        let v = vehicles(&out.join(&swept[k].file));
+        // The arrivals and routes are the file's without a share; only the ramp's types move.
+        let key = |v: &[(f64, String, String)]| v.iter().map(|x| (x.0, x.2.clone())).collect::<Vec<_>>();
+        assert_eq!(key(&v), key(&plain));
+        v.into_iter().filter(|x| x.2 == "ramp").map(|x| x.1).collect()
+    };
+    let (none, some, all) = (ramp_types(0), ramp_types(1), ramp_types(2));
+    // single_lane_merge's ramp flow is of type "ctrl"; its first other vType is "human".
+    assert!(
+        none.iter().all(|t| t == "human") && all.iter().all(|t| t == "ctrl"),
+        "{none:?} {all:?}"
+    );
+    let n = some.len() as f64;
+    let ctrl = some.iter().filter(|t| *t == "ctrl").count() as f64;
+    // 360 veh/h over 300 s: about 30 ramp vehicles; 4 standard deviations of 30%.
+    assert!((ctrl / n - 0.3).abs() < 4.0 * (0.21 / n).sqrt(), "{ctrl} of {n}");
+    // Without a vType of another type, the share has nothing to give the others.
+    let bare = out.join("bare.rou.xml");
+    std::fs::write(
+        &bare,
+        r#"<routes><vType id="ctrl"/><route id="r" edges="ramp merge out"/><flow id="onramp" type="ctrl" route="r" begin="0" end="60" vehsPerHour="600"/></routes>"#,
+    )
+    .unwrap();
+    let err = generate(&bare, std::slice::from_ref(&geometry), &spec(vec![0.5]), &out).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("the ramp flow `onramp` is of the controllable type `ctrl`"),
+        "{err}"
+    );
+}

@@ -8,7 +8,8 @@
 //! flows). Ramp flows (whose route, or `from`, starts on the edge of a ramp lane of
 //! `merge.toml`) can be rescaled to carry a given share of the demand, and a flow
 //! whose type is a `vTypeDistribution` that holds a controllable type draws each vehicle's type
-//! with the given controllable share; freeway flows of a plain type can carry a share of the
+//! with the given controllable share (a ramp flow of a plain controllable type too: the
+//! vehicles it leaves to SUMO take the file's first vType of another type); freeway flows of a plain type can carry a share of the
 //! controllable type too (a penetration rate). Types and routes are copied verbatim from the
 //! base file.
 //! A `manifest.json` lists the files with their parameters.
@@ -162,6 +163,9 @@ struct Base {
     flows: Vec<Flow>,
     /// vTypeDistribution id -> (controllable member, other member).
     mixes: Vec<(String, String, String)>,
+    /// The first vType (outside a distribution) not of a controllable type: the type a ramp
+    /// flow of a plain controllable type takes where a controllable share leaves it to SUMO.
+    human: Option<String>,
 }
 
 fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base, RoutesError> {
@@ -179,11 +183,17 @@ fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base,
     let mut verbatim = Vec::new();
     let mut routes = Vec::new();
     let mut mixes = Vec::new();
+    let mut human = None;
     let mut flows = Vec::new();
     for node in doc.root_element().children().filter(|n| n.is_element()) {
         let attr = |k: &str| node.attribute(k).map(str::to_owned);
         match node.tag_name().name() {
-            "vType" => verbatim.push(text[node.range()].to_owned()),
+            "vType" => {
+                verbatim.push(text[node.range()].to_owned());
+                if human.is_none() {
+                    human = attr("id").filter(|id| !controllable.contains(&id.as_str()));
+                }
+            }
             "vTypeDistribution" => {
                 verbatim.push(text[node.range()].to_owned());
                 let members: Vec<&str> = node
@@ -270,6 +280,7 @@ fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base,
         verbatim,
         flows,
         mixes,
+        human,
     })
 }
 
@@ -358,6 +369,21 @@ pub fn generate(
         })?),
         None => None,
     };
+    let controllable = controllable_types(merges);
+    let plain_ctrl_ramp = |f: &Flow| f.ramp && controllable.contains(&f.vtype.as_str());
+    if let Some(f) = base.flows.iter().find(|f| plain_ctrl_ramp(f))
+        && spec.controllable_shares.iter().any(|&c| c < 1.0)
+        && base.human.is_none()
+    {
+        return Err(RoutesError::Base {
+            path: base_path.to_path_buf(),
+            message: format!(
+                "the ramp flow `{}` is of the controllable type `{}`: a controllable share below 1 \
+                 needs a vType of another type in the file for the vehicles it leaves to SUMO",
+                f.id, f.vtype
+            ),
+        });
+    }
     let total: f64 = base.flows.iter().map(|f| f.per_hour).sum();
     let ramp: f64 = base.flows.iter().filter(|f| f.ramp).map(|f| f.per_hour).sum();
     let factor = |f: &Flow| match spec.ramp_share {
@@ -437,6 +463,12 @@ pub fn generate(
                                 other.clone()
                             }
                         }
+                        // A ramp flow of a plain controllable type: its own stream draws, so
+                        // the arrivals stay those of the file without a share.
+                        (None, Some(share)) if plain_ctrl_ramp(flow) => match &base.human {
+                            Some(human) if type_rng.random::<f64>() >= share => human.clone(),
+                            _ => flow.vtype.clone(),
+                        },
                         _ => match mainline {
                             Some((ctrl, p)) if type_rng.random::<f64>() < p => ctrl.clone(),
                             _ => flow.vtype.clone(),
