@@ -9,9 +9,10 @@
 //! `merge.toml`) can be rescaled to carry a given share of the demand, and a flow
 //! whose type is a `vTypeDistribution` that holds a controllable type draws each vehicle's type
 //! with the given controllable share (a ramp flow of a plain controllable type too: the
-//! vehicles it leaves to SUMO take the file's first vType of another type); freeway flows of a plain type can carry a share of the
-//! controllable type too (a penetration rate). Types and routes are copied verbatim from the
-//! base file.
+//! vehicles it leaves to SUMO take the file's first vType of another type); freeway flows of a
+//! plain type can carry a share of the controllable type too (a penetration rate). A file may
+//! carry the ramp's or the freeway's flows alone ([`Streams`]). Types and routes are copied
+//! verbatim from the base file.
 //! A `manifest.json` lists the files with their parameters.
 
 use crate::atomic;
@@ -501,10 +502,8 @@ pub fn generate(
                 _ => String::new(),
             };
             let mainline = spec.mainline_share.map_or(String::new(), |m| format!("_m{m:.2}"));
-            let streams = match spec.streams {
-                Streams::All => String::new(),
-                only => format!("_{}", only.name()),
-            };
+            let only = (spec.streams != Streams::All).then(|| spec.streams.name());
+            let streams = only.map_or(String::new(), |n| format!("_{n}"));
             let file = format!("{stem}_d{scale:.2}{swept}{mainline}{streams}_s{seed}.rou.xml");
             let mut xml = format!(
                 "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, mainline controllable share {:?}{}, seed {seed}, {} s -->\n<routes>\n",
@@ -512,10 +511,7 @@ pub fn generate(
                 spec.ramp_share,
                 share,
                 spec.mainline_share,
-                match spec.streams {
-                    Streams::All => String::new(),
-                    only => format!(", only the {} flows", only.name()),
-                },
+                only.map_or(String::new(), |n| format!(", only the {n} flows")),
                 spec.duration
             );
             for v in &base.verbatim {
