@@ -1,7 +1,8 @@
 //! `mpgdrive study`: the penetration study ([`mpgdrive::batch::penetration`]). For each share
 //! of controllable vehicles, route files (`routes` with that share on the ramp and on the
 //! freeway) run as a batch of `cosim` workers, the game and SUMO's drivers alone on the same
-//! routes for every seed; then the table, the CSV and the plot.
+//! routes for every seed; SUMO's drivers on each seed's ramp and freeway flows apart (the
+//! merge's own cost); then the table, the CSV and the plot.
 
 use crate::cli::batch::{absolute, check_run, cosim_args};
 use crate::cli::common::{PolicyPair, SeedChoice, deployed_policy, print, usage};
