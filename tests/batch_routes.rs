@@ -1,6 +1,6 @@
 //! `mpgdrive routes` as a library: Poisson demand from the I-80 base file, shares and seeds.
 
-use mpgdrive::batch::routes::{DemandSpec, Streams, generate};
+use mpgdrive::batch::routes::{DemandSpec, Streams, flows_by_stream, generate};
 use mpgdrive::sumo::MergeGeometry;
 use std::path::{Path, PathBuf};
 
@@ -271,6 +271,15 @@ fn each_stream_alone_keeps_its_vehicles_of_the_file_of_all_flows() {
         r#"<routes><vType id="human"/><route id="freeway" edges="approach main1"/><flow id="f" type="human" route="freeway" begin="0" end="60" vehsPerHour="600"/></routes>"#,
     )
     .unwrap();
+    // i80.rou.xml: the ramp's flow and six lanes' flows; the bare file: one freeway flow.
+    assert_eq!(
+        flows_by_stream(&base, std::slice::from_ref(&geometry)).unwrap(),
+        (1, 6)
+    );
+    assert_eq!(
+        flows_by_stream(&bare, std::slice::from_ref(&geometry)).unwrap(),
+        (0, 1)
+    );
     let mut only_ramp = spec(Streams::Ramp);
     only_ramp.mainline_share = None;
     let err = generate(&bare, std::slice::from_ref(&geometry), &only_ramp, &out).unwrap_err();

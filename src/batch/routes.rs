@@ -285,6 +285,18 @@ fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base,
     })
 }
 
+/// How many of the flows of the base file at `base_path` start on a ramp lane of `merges`, and
+/// how many do not: which [`Streams`] it can give.
+pub fn flows_by_stream(base_path: &Path, merges: &[MergeGeometry]) -> Result<(usize, usize), RoutesError> {
+    let text = std::fs::read_to_string(base_path).map_err(|source| RoutesError::Io {
+        path: base_path.to_path_buf(),
+        source,
+    })?;
+    let base = parse_base(base_path, &text, merges)?;
+    let ramp = base.flows.iter().filter(|f| f.ramp).count();
+    Ok((ramp, base.flows.len() - ramp))
+}
+
 /// A controllable type the base file defines (as a vType or a member of a distribution).
 fn controllable_type(base: &Base, merges: &[MergeGeometry]) -> Option<String> {
     controllable_types(merges).into_iter().find_map(|c| {

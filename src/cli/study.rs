@@ -11,7 +11,7 @@ use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::batch::capacity::{self, SweepRun};
 use mpgdrive::batch::penetration::{self, Conflicts, Spread, StudyRun, Trips};
-use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, Streams, generate};
+use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, Streams, flows_by_stream, generate};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, Combo, run_batch};
 use mpgdrive::config::Config;
 use mpgdrive::policy::Mode;
@@ -220,9 +220,12 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             runs.push(read(&dir, share, combo)?);
         }
     }
-    // The merge's own cost: each seed's ramp and freeway flows in runs of their own.
+    // The merge's own cost: each seed's ramp and freeway flows in runs of their own, when the
+    // base file has both (a ramp flow starts on a ramp lane of merge.toml).
+    let (ramp_flows, freeway_flows) = flows_by_stream(&base, &merges)?;
+    let both = ramp_flows > 0 && freeway_flows > 0;
     let mut alone: Vec<(u64, Trips)> = Vec::new();
-    for streams in [Streams::Ramp, Streams::Freeway] {
+    for streams in [Streams::Ramp, Streams::Freeway].into_iter().filter(|_| both) {
         let dir = args.out.join("apart").join(streams.name());
         let Some(done) = batch(&dir, demand, 0.0, &["sumo"], streams)? else {
             return Ok(ExitCode::from(130));
@@ -255,7 +258,14 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             .join(", "),
         args.end
     );
-    let md = title + &capacity_md + &penetration::markdown(&rows, apart);
+    let mut md = title + &capacity_md + &penetration::markdown(&rows, apart);
+    if !both {
+        md += &format!(
+            "\nThe merge's own cost is not measured: {} has {ramp_flows} flows that start on a ramp \
+             lane of merge.toml and {freeway_flows} that do not (it runs the two apart).\n",
+            base.display()
+        );
+    }
     atomic::write(&args.out.join("study.md"), &md).context("writing study.md")?;
     atomic::write(&args.out.join("study.csv"), penetration::csv(&rows, apart))
         .context("writing study.csv")?;
