@@ -216,7 +216,7 @@ def study_rows(kind):
         f"| Penetration study ({setting}): time loss of every vehicle, the game / SUMO's drivers "
         f"alone, at {' / '.join(r[0] for r in ratios)} controllable vehicles "
         f"| {' / '.join(r[1] for r in ratios)} | `{kind}.md` |",
-        f"| {verdict.group(1) if verdict else '?'} | | `{kind}.md` |",
+        f"| {name}: {verdict.group(1) if verdict else '?'} | | `{kind}.md` |",
     ]
     if cost and saved:
         out.append(f"| {name}: each stream alone (the merge costing nothing), time loss / SUMO's "
