@@ -336,7 +336,126 @@ fn a_controllable_share_applies_to_a_ramp_flow_of_a_plain_controllable_type() {
     let err = generate(&bare, std::slice::from_ref(&geometry), &spec(vec![0.5]), &out).unwrap_err();
     assert!(
         err.to_string()
-            .contains("the ramp flow `onramp` is of the controllable type `ctrl`"),
+            .contains("`onramp` is of the controllable type `ctrl`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn explicit_vehicles_and_trips_are_kept_copied_by_the_scale_and_take_the_shares() {
+    let (_, geometry) = i80();
+    let out = out_dir("explicit");
+    std::fs::create_dir_all(&out).unwrap();
+    let base = out.join("explicit.rou.xml");
+    std::fs::write(
+        &base,
+        r#"<routes>
+    <vType id="human"/>
+    <vType id="ctrl"/>
+    <route id="freeway" edges="approach main1 merge main2 departure"/>
+    <vehicle id="a" type="human" route="freeway" depart="1.50" departLane="2"/>
+    <trip id="b" type="ctrl" depart="3" from="ramp" to="departure"/>
+    <vehicle id="c" depart="7.25"><route edges="ramp merge main2 departure"/><param key="k" value="v"/></vehicle>
+    <vehicle id="late" type="human" route="freeway" depart="900"/>
+</routes>"#,
+    )
+    .unwrap();
+    let merges = std::slice::from_ref(&geometry);
+    let spec = |scale: f64, streams, shares: Vec<f64>, mainline| DemandSpec {
+        scales: vec![scale],
+        ramp_share: None,
+        controllable_shares: shares,
+        mainline_share: mainline,
+        seeds: vec![0],
+        duration: 600.0,
+        streams,
+    };
+    // (tag, id, type, depart, the rest of the element) of every vehicle of a generated file.
+    let read = |spec: DemandSpec| -> Vec<(String, String, String, String, String)> {
+        let m = generate(&base, merges, &spec, &out).unwrap();
+        let text = std::fs::read_to_string(out.join(&m[0].file)).unwrap();
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        doc.root_element()
+            .children()
+            .filter(|n| n.has_tag_name("vehicle") || n.has_tag_name("trip"))
+            .map(|n| {
+                let rest: Vec<String> = n
+                    .attributes()
+                    .filter(|a| !["id", "type", "depart"].contains(&a.name()))
+                    .map(|a| format!("{}={}", a.name(), a.value()))
+                    .chain(n.descendants().skip(1).filter(|c| c.is_element()).map(|c| {
+                        let attrs: Vec<String> = c.attributes().map(|a| a.value().to_owned()).collect();
+                        format!("<{} {}>", c.tag_name().name(), attrs.join(" "))
+                    }))
+                    .collect();
+                let a = |k: &str| n.attribute(k).unwrap().to_owned();
+                (
+                    n.tag_name().name().to_owned(),
+                    a("id"),
+                    a("type"),
+                    a("depart"),
+                    rest.join(" "),
+                )
+            })
+            .collect()
+    };
+    let row = |tag: &str, id: &str, vtype: &str, depart: &str, rest: &str| {
+        (tag.into(), id.into(), vtype.into(), depart.into(), rest.into())
+    };
+    let c_rest = "<route ramp merge main2 departure> <param k v>";
+    // Scale 1: every vehicle that departs within the 600 s, as written (c's route and parameter
+    // too); `late` departs after them.
+    assert_eq!(
+        read(spec(1.0, Streams::All, vec![], None)),
+        vec![
+            row("vehicle", "a", "human", "1.50", "route=freeway departLane=2"),
+            row("trip", "b", "ctrl", "3", "from=ramp to=departure"),
+            row("vehicle", "c", "DEFAULT_VEHTYPE", "7.25", c_rest),
+        ]
+    );
+    // Scale 2: each twice, at its departure.
+    let ids: Vec<String> = read(spec(2.0, Streams::All, vec![], None))
+        .into_iter()
+        .map(|v| v.1)
+        .collect();
+    assert_eq!(ids, ["a", "a#1", "b", "b#1", "c", "c#1"]);
+    // The ramp's alone: b (from the ramp's edge) and c (its route starts there).
+    let ramp: Vec<String> = read(spec(1.0, Streams::Ramp, vec![], None))
+        .into_iter()
+        .map(|v| v.1)
+        .collect();
+    assert_eq!(ramp, ["b", "c"]);
+    // A controllable share of 0 leaves the ramp's b to SUMO as the first other vType; a
+    // mainline share of 1 makes the freeway's a controllable.
+    let types: Vec<String> = read(spec(1.0, Streams::All, vec![0.0], Some(1.0)))
+        .into_iter()
+        .map(|v| v.2)
+        .collect();
+    assert_eq!(types, ["ctrl", "human", "DEFAULT_VEHTYPE"]);
+    assert_eq!(flows_by_stream(&base, merges).unwrap(), (2, 2));
+    // Scale 0.5 over 400 vehicles keeps about half (4 standard deviations of 10).
+    let many: String = (0..400)
+        .map(|k| format!("<vehicle id=\"v{k}\" type=\"human\" route=\"freeway\" depart=\"{k}\"/>"))
+        .collect();
+    std::fs::write(
+        &base,
+        format!(r#"<routes><vType id="human"/><route id="freeway" edges="approach main1"/>{many}</routes>"#),
+    )
+    .unwrap();
+    let mut long = spec(0.5, Streams::All, vec![], None);
+    long.duration = 1000.0;
+    let kept = read(long).len();
+    assert!((160..=240).contains(&kept), "{kept}");
+    // A departure that is not a time is refused.
+    std::fs::write(
+        &base,
+        r#"<routes><vType id="human"/><trip id="t" depart="triggered" from="ramp" to="departure"/></routes>"#,
+    )
+    .unwrap();
+    let err = generate(&base, merges, &spec(1.0, Streams::All, vec![], None), &out).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("depart=\"triggered\" is not a time in seconds"),
         "{err}"
     );
 }

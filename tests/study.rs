@@ -341,3 +341,38 @@ fn the_capacity_sweep_finds_where_a_one_lane_merge_stops_taking_more_vehicles() 
         refused("--capacity", capacity, &sumocfg, &dir.join("bad"), message);
     }
 }
+
+#[cfg(feature = "sumo")]
+#[test]
+fn a_study_runs_on_a_route_file_of_explicit_trips() {
+    let dir = fresh_dir("study-explicit");
+    let sumocfg = merge_net(&dir);
+    // The network's flows written out as explicit trips (as randomTrips.py would give them)
+    // become its route file.
+    let trips = dir.join("trips");
+    let out = common::bin()
+        .args(["routes", "--duration", "120", "--base"])
+        .arg(dir.join("net/merge.rou.xml"))
+        .arg("--out")
+        .arg(&trips)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::copy(
+        trips.join("merge_d1.00_s0.rou.xml"),
+        dir.join("net/merge.rou.xml"),
+    )
+    .unwrap();
+    let study = dir.join("study");
+    let out = study_run(
+        &["--shares", "0,1", "--seeds", "0", "--end", "120"],
+        &sumocfg,
+        &study,
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let md = std::fs::read_to_string(study.join("study.md")).unwrap();
+    assert!(
+        md.contains("| 100% | 1 |") && md.contains("## The merge's own cost"),
+        "{md}"
+    );
+}

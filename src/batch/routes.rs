@@ -13,6 +13,9 @@
 //! plain type can carry a share of the controllable type too (a penetration rate). A file may
 //! carry the ramp's or the freeway's flows alone ([`Streams`]). Types and routes are copied
 //! verbatim from the base file.
+//! Explicit `<vehicle>` and `<trip>` elements (route files of `randomTrips.py`, say) are kept
+//! with their departures and attributes, each `scale` times in expectation as SUMO's `--scale`
+//! copies them, and take the same shares.
 //! A `manifest.json` lists the files with their parameters.
 
 use crate::atomic;
@@ -157,11 +160,30 @@ const RATE_ATTRIBUTES: [&str; 9] = [
     "number",
 ];
 
+/// A `<vehicle>` or `<trip>` of the base file.
+#[derive(Debug, Clone)]
+struct Explicit {
+    tag: String,
+    id: String,
+    vtype: String,
+    /// Its departure, as written and as a number.
+    depart: (String, f64),
+    /// Other attributes (route, from, to, departLane, ...), copied.
+    extra: Vec<(String, String)>,
+    /// Its children (an embedded route, stops, parameters), verbatim.
+    inner: String,
+    ramp: bool,
+}
+
+/// Attributes of a vehicle that its copies write themselves.
+const OWN_ATTRIBUTES: [&str; 3] = ["id", "type", "depart"];
+
 /// The parts of a base route file the generator uses.
 struct Base {
     /// vType, vTypeDistribution and route elements, verbatim.
     verbatim: Vec<String>,
     flows: Vec<Flow>,
+    explicit: Vec<Explicit>,
     /// vTypeDistribution id -> (controllable member, other member).
     mixes: Vec<(String, String, String)>,
     /// The first vType (outside a distribution) not of a controllable type: the type a ramp
@@ -186,6 +208,7 @@ fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base,
     let mut mixes = Vec::new();
     let mut human = None;
     let mut flows = Vec::new();
+    let mut explicit = Vec::new();
     for node in doc.root_element().children().filter(|n| n.is_element()) {
         let attr = |k: &str| node.attribute(k).map(str::to_owned);
         match node.tag_name().name() {
@@ -271,30 +294,125 @@ fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base,
                         .collect(),
                 });
             }
+            tag @ ("vehicle" | "trip") => {
+                let id = attr("id").ok_or_else(|| bad(format!("a <{tag}> without id")))?;
+                let depart = attr("depart").unwrap_or_default();
+                let at = depart.parse::<f64>().ok().filter(|t| t.is_finite() && *t >= 0.0).ok_or_else(|| {
+                    bad(format!(
+                        "<{tag} id=\"{id}\">: depart=\"{depart}\" is not a time in seconds (the only departures it scales)"
+                    ))
+                })?;
+                let embedded = node.children().find(|n| n.has_tag_name("route"));
+                let first_edge = match (attr("route"), embedded, attr("from")) {
+                    (Some(route), _, _) => routes
+                        .iter()
+                        .find(|(r, _)| *r == route)
+                        .map(|(_, e)| e.clone())
+                        .ok_or_else(|| {
+                        bad(format!(
+                            "<{tag} id=\"{id}\"> uses route `{route}`, not defined before it"
+                        ))
+                    })?,
+                    (None, Some(r), _) => r
+                        .attribute("edges")
+                        .unwrap_or_default()
+                        .split_whitespace()
+                        .next()
+                        .unwrap_or("")
+                        .to_owned(),
+                    (None, None, Some(from)) => from,
+                    (None, None, None) => {
+                        return Err(bad(format!("<{tag} id=\"{id}\"> without a route or `from`")));
+                    }
+                };
+                let inner = match (node.first_child(), node.last_child()) {
+                    (Some(a), Some(b)) => text[a.range().start..b.range().end].to_owned(),
+                    _ => String::new(),
+                };
+                explicit.push(Explicit {
+                    tag: tag.to_owned(),
+                    vtype: attr("type").unwrap_or_else(|| "DEFAULT_VEHTYPE".into()),
+                    depart: (depart, at),
+                    extra: node
+                        .attributes()
+                        .filter(|a| !OWN_ATTRIBUTES.contains(&a.name()))
+                        .map(|a| (a.name().to_owned(), a.value().to_owned()))
+                        .collect(),
+                    inner: if inner.trim().is_empty() {
+                        String::new()
+                    } else {
+                        inner
+                    },
+                    ramp: ramp_edges.contains(&first_edge.as_str()),
+                    id,
+                });
+            }
             _ => {}
         }
     }
-    if flows.is_empty() {
-        return Err(bad("no <flow> to scale".into()));
+    if flows.is_empty() && explicit.is_empty() {
+        return Err(bad("no <flow>, <vehicle> or <trip> to scale".into()));
     }
     Ok(Base {
         verbatim,
         flows,
+        explicit,
         mixes,
         human,
     })
 }
 
-/// How many of the flows of the base file at `base_path` start on a ramp lane of `merges`, and
-/// how many do not: which [`Streams`] it can give.
+/// How many of the flows and explicit vehicles of the base file at `base_path` start on a ramp
+/// lane of `merges`, and how many do not: which [`Streams`] it can give.
 pub fn flows_by_stream(base_path: &Path, merges: &[MergeGeometry]) -> Result<(usize, usize), RoutesError> {
     let text = std::fs::read_to_string(base_path).map_err(|source| RoutesError::Io {
         path: base_path.to_path_buf(),
         source,
     })?;
     let base = parse_base(base_path, &text, merges)?;
-    let ramp = base.flows.iter().filter(|f| f.ramp).count();
-    Ok((ramp, base.flows.len() - ramp))
+    let ramp = base.ramp_flags().filter(|&r| r).count();
+    Ok((ramp, base.ramp_flags().count() - ramp))
+}
+
+impl Base {
+    /// Whether each flow, then each explicit vehicle, starts on a ramp lane.
+    fn ramp_flags(&self) -> impl Iterator<Item = bool> + '_ {
+        (self.flows.iter().map(|f| f.ramp)).chain(self.explicit.iter().map(|v| v.ramp))
+    }
+
+    /// The type of one vehicle of `vtype` (of a flow or an explicit vehicle, from the ramp if
+    /// `ramp`): a vTypeDistribution holding a controllable type draws it with the controllable
+    /// `share` from `mix_rng`; a ramp vehicle of a plain controllable type stays it with
+    /// probability `share` and otherwise takes [`Base::human`]; a freeway vehicle of a plain
+    /// type becomes `mainline`'s controllable type with its probability. Those two draw from
+    /// `type_rng`.
+    fn draw_type(
+        &self,
+        (vtype, ramp): (&str, bool),
+        share: Option<f64>,
+        mainline: Option<(&String, f64)>,
+        controllable: &[&str],
+        (mix_rng, type_rng): (&mut ChaCha8Rng, &mut ChaCha8Rng),
+    ) -> String {
+        let mix = self.mixes.iter().find(|(id, _, _)| id == vtype);
+        match (mix, share) {
+            (Some((_, ctrl, other)), Some(share)) => {
+                if mix_rng.random::<f64>() < share {
+                    ctrl.clone()
+                } else {
+                    other.clone()
+                }
+            }
+            (None, Some(share)) if ramp && controllable.contains(&vtype) => match &self.human {
+                Some(human) if type_rng.random::<f64>() >= share => human.clone(),
+                _ => vtype.to_owned(),
+            },
+            _ => match mainline.filter(|_| !ramp && mix.is_none()) {
+                Some((ctrl, p)) if type_rng.random::<f64>() < p => ctrl.clone(),
+                _ => vtype.to_owned(),
+            },
+        }
+    }
 }
 
 /// A controllable type the base file defines (as a vType or a member of a distribution).
@@ -383,20 +501,27 @@ pub fn generate(
         None => None,
     };
     let controllable = controllable_types(merges);
-    let plain_ctrl_ramp = |f: &Flow| f.ramp && controllable.contains(&f.vtype.as_str());
-    if let Some(f) = base.flows.iter().find(|f| plain_ctrl_ramp(f))
+    let plain_ctrl_ramp = (base.flows.iter().filter(|f| f.ramp).map(|f| (&f.id, &f.vtype)))
+        .chain(base.explicit.iter().filter(|v| v.ramp).map(|v| (&v.id, &v.vtype)))
+        .find(|(_, t)| controllable.contains(&t.as_str()));
+    if let Some((id, vtype)) = plain_ctrl_ramp
         && spec.controllable_shares.iter().any(|&c| c < 1.0)
         && base.human.is_none()
     {
         return Err(RoutesError::Base {
             path: base_path.to_path_buf(),
             message: format!(
-                "the ramp flow `{}` is of the controllable type `{}`: a controllable share below 1 \
-                 needs a vType of another type in the file for the vehicles it leaves to SUMO",
-                f.id, f.vtype
+                "the ramp's flow or vehicle `{id}` is of the controllable type `{vtype}`: a controllable share below 1 \
+                 needs a vType of another type in the file for the vehicles it leaves to SUMO"
             ),
         });
     }
+    if spec.ramp_share.is_some() && !base.explicit.is_empty() {
+        return Err(RoutesError::Invalid(
+            "--ramp-share rescales flows; the base file has explicit vehicles or trips".into(),
+        ));
+    }
+    let mainline = mainline_type.as_ref().zip(spec.mainline_share);
     let total: f64 = base.flows.iter().map(|f| f.per_hour).sum();
     let ramp: f64 = base.flows.iter().filter(|f| f.ramp).map(|f| f.per_hour).sum();
     let factor = |f: &Flow| match spec.ramp_share {
@@ -409,7 +534,7 @@ pub fn generate(
         }
         _ => 1.0,
     };
-    if !base.flows.iter().any(|f| spec.streams.carries(f.ramp)) {
+    if !base.ramp_flags().any(|r| spec.streams.carries(r)) {
         return Err(RoutesError::Invalid(format!(
             "the base file has no {} flow",
             spec.streams.name()
@@ -426,7 +551,8 @@ pub fn generate(
             .flows
             .iter()
             .map(|f| f.per_hour * scale * factor(f) / 3600.0 * (f.end.min(spec.duration) - f.begin).max(0.0))
-            .sum();
+            .sum::<f64>()
+            + base.explicit.len() as f64 * scale;
         if expected > MAX_VEHICLES {
             return Err(RoutesError::Invalid(format!(
                 "demand scale {scale} would give about {expected:.3e} vehicles in one file (at most {MAX_VEHICLES:e})"
@@ -453,13 +579,8 @@ pub fn generate(
                 }
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 rng.set_stream(k as u64);
-                let mix = base.mixes.iter().find(|(id, _, _)| *id == flow.vtype);
                 let mut type_rng = ChaCha8Rng::seed_from_u64(seed);
                 type_rng.set_stream((1 << 32) + k as u64);
-                let mainline = mainline_type
-                    .as_ref()
-                    .zip(spec.mainline_share)
-                    .filter(|_| !flow.ramp && mix.is_none());
                 let mut t = flow.begin;
                 let end = flow.end.min(spec.duration);
                 let mut n = 0usize;
@@ -468,25 +589,15 @@ pub fn generate(
                     if t >= end {
                         break;
                     }
-                    let vtype = match (mix, share) {
-                        (Some((_, ctrl, other)), Some(share)) => {
-                            if rng.random::<f64>() < share {
-                                ctrl.clone()
-                            } else {
-                                other.clone()
-                            }
-                        }
-                        // A ramp flow of a plain controllable type: its own stream draws, so
-                        // the arrivals stay those of the file without a share.
-                        (None, Some(share)) if plain_ctrl_ramp(flow) => match &base.human {
-                            Some(human) if type_rng.random::<f64>() >= share => human.clone(),
-                            _ => flow.vtype.clone(),
-                        },
-                        _ => match mainline {
-                            Some((ctrl, p)) if type_rng.random::<f64>() < p => ctrl.clone(),
-                            _ => flow.vtype.clone(),
-                        },
-                    };
+                    // A distribution draws on the arrivals' stream (as it always has); the
+                    // other draws have their own, so the arrivals stay those without a share.
+                    let vtype = base.draw_type(
+                        (&flow.vtype, flow.ramp),
+                        share,
+                        mainline,
+                        &controllable,
+                        (&mut rng, &mut type_rng),
+                    );
                     let extra: String = flow
                         .extra
                         .iter()
@@ -506,6 +617,47 @@ pub fn generate(
                         ),
                     ));
                     n += 1;
+                }
+            }
+            // Explicit vehicles: each kept (copied) `scale` times in expectation, every copy at
+            // its departure, as SUMO's --scale does; copies after the first are `<id>#<k>`.
+            for (j, v) in base.explicit.iter().enumerate() {
+                if !spec.streams.carries(v.ramp) || v.depart.1 >= spec.duration {
+                    continue;
+                }
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                rng.set_stream((2 << 32) + j as u64);
+                let mut type_rng = ChaCha8Rng::seed_from_u64(seed);
+                type_rng.set_stream((3 << 32) + j as u64);
+                let copies = scale.floor() as usize + usize::from(rng.random::<f64>() < scale.fract());
+                let extra: String = (v.extra.iter())
+                    .map(|(a, x)| format!(" {a}=\"{}\"", xml_escape(x)))
+                    .collect();
+                for c in 0..copies {
+                    let vtype = base.draw_type(
+                        (&v.vtype, v.ramp),
+                        share,
+                        mainline,
+                        &controllable,
+                        (&mut rng, &mut type_rng),
+                    );
+                    let id = if c == 0 {
+                        v.id.clone()
+                    } else {
+                        format!("{}#{c}", v.id)
+                    };
+                    let head = format!(
+                        "    <{} id=\"{}\" type=\"{}\" depart=\"{}\"{extra}",
+                        v.tag,
+                        xml_escape(&id),
+                        xml_escape(&vtype),
+                        xml_escape(&v.depart.0)
+                    );
+                    let element = match v.inner.is_empty() {
+                        true => format!("{head}/>"),
+                        false => format!("{head}>{}</{}>", v.inner, v.tag),
+                    };
+                    vehicles.push((v.depart.1, element));
                 }
             }
             vehicles.sort_by(|a, b| a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1)));
