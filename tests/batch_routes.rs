@@ -290,7 +290,7 @@ fn each_stream_alone_keeps_its_vehicles_of_the_file_of_all_flows() {
 }
 
 #[test]
-fn a_controllable_share_applies_to_a_ramp_flow_of_a_plain_controllable_type() {
+fn a_controllable_share_applies_to_a_ramp_flow_of_a_plain_type() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("sumo_nets/single_lane_merge");
     let (base, geometry) = (
         dir.join("merge.rou.xml"),
@@ -326,6 +326,30 @@ fn a_controllable_share_applies_to_a_ramp_flow_of_a_plain_controllable_type() {
     let ctrl = some.iter().filter(|t| *t == "ctrl").count() as f64;
     // 360 veh/h over 300 s: about 30 ramp vehicles; 4 standard deviations of 30%.
     assert!((ctrl / n - 0.3).abs() < 4.0 * (0.21 / n).sqrt(), "{ctrl} of {n}");
+    // A ramp flow of a plain other type takes the controllable type with the share.
+    let human_ramp = out.join("human_ramp.rou.xml");
+    let text = std::fs::read_to_string(&base).unwrap();
+    std::fs::write(
+        &human_ramp,
+        text.replace(
+            r#"<flow id="onramp" type="ctrl""#,
+            r#"<flow id="onramp" type="human""#,
+        ),
+    )
+    .unwrap();
+    let m = generate(
+        &human_ramp,
+        std::slice::from_ref(&geometry),
+        &spec(vec![0.3]),
+        &out,
+    )
+    .unwrap();
+    let v = vehicles(&out.join(&m[0].file));
+    let ramp: Vec<&(f64, String, String)> = v.iter().filter(|x| x.2 == "ramp").collect();
+    let ctrl = ramp.iter().filter(|x| x.1 == "ctrl").count() as f64;
+    let n = ramp.len() as f64;
+    assert!((ctrl / n - 0.3).abs() < 4.0 * (0.21 / n).sqrt(), "{ctrl} of {n}");
+    assert!(v.iter().filter(|x| x.2 == "main").all(|x| x.1 == "human"));
     // Without a vType of another type, the share has nothing to give the others.
     let bare = out.join("bare.rou.xml");
     std::fs::write(
@@ -432,6 +456,12 @@ fn explicit_vehicles_and_trips_are_kept_copied_by_the_scale_and_take_the_shares(
         .map(|v| v.2)
         .collect();
     assert_eq!(types, ["ctrl", "human", "DEFAULT_VEHTYPE"]);
+    // A share of 1 makes every ramp vehicle controllable, c of a plain other type too.
+    let types: Vec<String> = read(spec(1.0, Streams::All, vec![1.0], Some(0.0)))
+        .into_iter()
+        .map(|v| v.2)
+        .collect();
+    assert_eq!(types, ["human", "ctrl", "ctrl"]);
     assert_eq!(flows_by_stream(&base, merges).unwrap(), (2, 2));
     // Scale 0.5 over 400 vehicles keeps about half (4 standard deviations of 10).
     let many: String = (0..400)

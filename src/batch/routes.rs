@@ -8,8 +8,9 @@
 //! flows). Ramp flows (whose route, or `from`, starts on the edge of a ramp lane of
 //! `merge.toml`) can be rescaled to carry a given share of the demand, and a flow
 //! whose type is a `vTypeDistribution` that holds a controllable type draws each vehicle's type
-//! with the given controllable share (a ramp flow of a plain controllable type too: the
-//! vehicles it leaves to SUMO take the file's first vType of another type); freeway flows of a
+//! with the given controllable share, and so does a ramp flow of a plain type (one of a
+//! controllable type gives the vehicles it leaves to SUMO the file's first vType of another
+//! type; one of another type gives its controllable ones the controllable type); freeway flows of a
 //! plain type can carry a share of the controllable type too (a penetration rate). A file may
 //! carry the ramp's or the freeway's flows alone ([`Streams`]). Types and routes are copied
 //! verbatim from the base file.
@@ -382,37 +383,54 @@ impl Base {
 
     /// The type of one vehicle of `vtype` (of a flow or an explicit vehicle, from the ramp if
     /// `ramp`): a vTypeDistribution holding a controllable type draws it with the controllable
-    /// `share` from `mix_rng`; a ramp vehicle of a plain controllable type stays it with
-    /// probability `share` and otherwise takes [`Base::human`]; a freeway vehicle of a plain
-    /// type becomes `mainline`'s controllable type with its probability. Those two draw from
-    /// `type_rng`.
+    /// share from `mix_rng`; a ramp vehicle of a plain type is of the controllable type with
+    /// that share (one of a controllable type otherwise takes [`Base::human`], one of another
+    /// type keeps it); a freeway vehicle of a plain type becomes controllable with the mainline
+    /// share. Those draw from `type_rng`.
     fn draw_type(
         &self,
         (vtype, ramp): (&str, bool),
-        share: Option<f64>,
-        mainline: Option<(&String, f64)>,
-        controllable: &[&str],
+        shares: &TypeShares,
         (mix_rng, type_rng): (&mut ChaCha8Rng, &mut ChaCha8Rng),
     ) -> String {
         let mix = self.mixes.iter().find(|(id, _, _)| id == vtype);
-        match (mix, share) {
-            (Some((_, ctrl, other)), Some(share)) => {
-                if mix_rng.random::<f64>() < share {
-                    ctrl.clone()
-                } else {
-                    other.clone()
-                }
+        let controllable = shares.controllable.contains(&vtype);
+        let drawn = |rng: &mut ChaCha8Rng, p: f64, yes: &String, no: &str| -> String {
+            if rng.random::<f64>() < p {
+                yes.clone()
+            } else {
+                no.to_owned()
             }
-            (None, Some(share)) if ramp && controllable.contains(&vtype) => match &self.human {
-                Some(human) if type_rng.random::<f64>() >= share => human.clone(),
-                _ => vtype.to_owned(),
+        };
+        match (mix, shares.ramp, shares.ctrl) {
+            (Some((_, ctrl, other)), Some(share), _) => drawn(mix_rng, share, ctrl, other),
+            (None, Some(share), _) if ramp && controllable => match &self.human {
+                Some(human) => drawn(type_rng, 1.0 - share, human, vtype),
+                None => vtype.to_owned(),
             },
-            _ => match mainline.filter(|_| !ramp && mix.is_none()) {
-                Some((ctrl, p)) if type_rng.random::<f64>() < p => ctrl.clone(),
-                _ => vtype.to_owned(),
+            (None, Some(share), Some(ctrl)) if ramp => drawn(type_rng, share, ctrl, vtype),
+            _ => match shares
+                .mainline
+                .zip(shares.ctrl)
+                .filter(|_| !ramp && mix.is_none())
+            {
+                Some((p, ctrl)) => drawn(type_rng, p, ctrl, vtype),
+                None => vtype.to_owned(),
             },
         }
     }
+}
+
+/// The shares a generated file's vehicle types are drawn with ([`Base::draw_type`]).
+struct TypeShares<'a> {
+    /// Controllable share of the ramp's vehicles.
+    ramp: Option<f64>,
+    /// Controllable share of the freeway's vehicles of a plain type.
+    mainline: Option<f64>,
+    /// The file's controllable type.
+    ctrl: Option<&'a String>,
+    /// The controllable types of the merges.
+    controllable: &'a [&'a str],
 }
 
 /// A controllable type the base file defines (as a vType or a member of a distribution).
@@ -490,17 +508,35 @@ pub fn generate(
     };
     let text = std::fs::read_to_string(base_path).map_err(io(base_path))?;
     let base = parse_base(base_path, &text, merges)?;
-    let mainline_type = match spec.mainline_share {
-        Some(_) => Some(controllable_type(&base, merges).ok_or_else(|| RoutesError::Base {
-            path: base_path.to_path_buf(),
-            message: format!(
-                "--mainline-controllable-share needs a vType of a controllable type ({}) in the file",
-                controllable_types(merges).join(", ")
-            ),
-        })?),
-        None => None,
-    };
     let controllable = controllable_types(merges);
+    let ctrl_type = controllable_type(&base, merges);
+    let plain_ramp_share = spec.controllable_shares.iter().any(|&c| c > 0.0)
+        && (base.flows.iter().map(|f| (f.ramp, &f.vtype)))
+            .chain(base.explicit.iter().map(|v| (v.ramp, &v.vtype)))
+            .any(|(ramp, t)| ramp && !base.mixes.iter().any(|(id, _, _)| id == t));
+    for (needed, flag) in [
+        (spec.mainline_share.is_some(), "--mainline-controllable-share"),
+        (
+            plain_ramp_share,
+            "a controllable share of ramp vehicles of a plain type",
+        ),
+    ] {
+        if needed && ctrl_type.is_none() {
+            return Err(RoutesError::Base {
+                path: base_path.to_path_buf(),
+                message: format!(
+                    "{flag} needs a vType of a controllable type ({}) in the file",
+                    controllable.join(", ")
+                ),
+            });
+        }
+    }
+    let type_shares = |ramp| TypeShares {
+        ramp,
+        mainline: spec.mainline_share,
+        ctrl: ctrl_type.as_ref(),
+        controllable: &controllable,
+    };
     let plain_ctrl_ramp = (base.flows.iter().filter(|f| f.ramp).map(|f| (&f.id, &f.vtype)))
         .chain(base.explicit.iter().filter(|v| v.ramp).map(|v| (&v.id, &v.vtype)))
         .find(|(_, t)| controllable.contains(&t.as_str()));
@@ -521,7 +557,6 @@ pub fn generate(
             "--ramp-share rescales flows; the base file has explicit vehicles or trips".into(),
         ));
     }
-    let mainline = mainline_type.as_ref().zip(spec.mainline_share);
     let total: f64 = base.flows.iter().map(|f| f.per_hour).sum();
     let ramp: f64 = base.flows.iter().filter(|f| f.ramp).map(|f| f.per_hour).sum();
     let factor = |f: &Flow| match spec.ramp_share {
@@ -593,9 +628,7 @@ pub fn generate(
                     // other draws have their own, so the arrivals stay those without a share.
                     let vtype = base.draw_type(
                         (&flow.vtype, flow.ramp),
-                        share,
-                        mainline,
-                        &controllable,
+                        &type_shares(share),
                         (&mut rng, &mut type_rng),
                     );
                     let extra: String = flow
@@ -634,13 +667,8 @@ pub fn generate(
                     .map(|(a, x)| format!(" {a}=\"{}\"", xml_escape(x)))
                     .collect();
                 for c in 0..copies {
-                    let vtype = base.draw_type(
-                        (&v.vtype, v.ramp),
-                        share,
-                        mainline,
-                        &controllable,
-                        (&mut rng, &mut type_rng),
-                    );
+                    let vtype =
+                        base.draw_type((&v.vtype, v.ramp), &type_shares(share), (&mut rng, &mut type_rng));
                     let id = if c == 0 {
                         v.id.clone()
                     } else {
