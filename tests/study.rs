@@ -171,6 +171,13 @@ fn study_run(args: &[&str], sumocfg: &std::path::Path, out: &std::path::Path) ->
         .unwrap()
 }
 
+/// A study at shares 0 and 1, seed 0, 120 s, on `sumocfg` into `out`, which must succeed.
+#[cfg(feature = "sumo")]
+fn short_study(sumocfg: &std::path::Path, out: &std::path::Path) {
+    let run = study_run(&["--shares", "0,1", "--seeds", "0", "--end", "120"], sumocfg, out);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+}
+
 /// `study FLAG VALUE` on `sumocfg` is refused with exit code 2 and `message`, before anything
 /// is written to `out`.
 #[cfg(feature = "sumo")]
@@ -189,12 +196,7 @@ fn a_short_study_in_sumo_reads_its_drivers_exactly_where_nobody_is_controlled() 
     let dir = fresh_dir("study-sumo");
     let sumocfg = merge_net(&dir);
     let study = dir.join("study");
-    let out = study_run(
-        &["--shares", "0,1", "--seeds", "0", "--end", "120"],
-        &sumocfg,
-        &study,
-    );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    short_study(&sumocfg, &study);
     let csv = std::fs::read_to_string(study.join("study.csv")).unwrap();
     let value = |share: &str, quantity: &str, side: &str| -> f64 {
         let line = csv
@@ -364,12 +366,7 @@ fn a_study_runs_on_a_route_file_of_explicit_trips() {
     )
     .unwrap();
     let study = dir.join("study");
-    let out = study_run(
-        &["--shares", "0,1", "--seeds", "0", "--end", "120"],
-        &sumocfg,
-        &study,
-    );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    short_study(&sumocfg, &study);
     let md = std::fs::read_to_string(study.join("study.md")).unwrap();
     assert!(
         md.contains("| 100% | 1 |") && md.contains("## The merge's own cost"),
