@@ -28,10 +28,12 @@ use mpgdrive::policy::observation::PolicyActor;
 use mpgdrive::train::adam::Adam;
 use mpgdrive::train::stacked::StackedNet;
 use mpgdrive::world::drivers::Driver;
-use mpgdrive::world::sampler::{Purpose, purpose_seed, sample_probe_scenes, sample_training_scenes};
+use mpgdrive::world::sampler::{
+    Purpose, purpose_seed, sample_probe_scenes, sample_training_scenes, standard_normal,
+};
 use mpgdrive::world::scenarios::Preset;
 use mpgdrive::world::state::Scene;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -98,13 +100,6 @@ fn outcomes(config: &Config, nets: Vec<PolicyNet>, scenes: &[Scene]) -> Vec<Epis
     })
 }
 
-/// A standard normal draw (Box-Muller).
-fn normal(rng: &mut impl Rng) -> f32 {
-    let u: f64 = 1.0 - rng.random::<f64>();
-    let v: f64 = rng.random();
-    ((-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()) as f32
-}
-
 fn mean_potential(o: &[EpisodeOutcome]) -> f64 {
     o.iter().map(|o| o.potential_return).sum::<f64>() / o.len() as f64
 }
@@ -166,7 +161,7 @@ fn main() -> anyhow::Result<()> {
                         (0..n)
                             .map(|_| {
                                 if name.starts_with(&prefix) {
-                                    normal(&mut rng)
+                                    standard_normal(&mut rng) as f32
                                 } else {
                                     0.0
                                 }

@@ -15,9 +15,8 @@ use crate::engine::rollout::{DriverActor, Recording, RolloutOptions, rollout};
 use crate::ngsim::config::{FRAME_SECONDS, NgsimConfig};
 use crate::ngsim::load::{COLUMNS, FOOT};
 use crate::world::drivers::Driver;
-use crate::world::sampler::{sample_scenes, scenario_rng};
+use crate::world::sampler::{sample_scenes, scenario_rng, standard_normal};
 use rand::Rng;
-use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
 
 /// Which official layout to write.
@@ -66,13 +65,6 @@ pub struct Synthetic {
 
 /// Frames between two episodes' blocks.
 const GAP_FRAMES: u32 = 100;
-
-fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    // Box-Muller.
-    let u: f64 = 1.0 - rng.random::<f64>();
-    let v: f64 = rng.random();
-    (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-}
 
 /// Generates `episodes` episodes from the initial states of `seed`; `config` is the paper
 /// configuration (its conflict point is replaced by the NGSIM one).
@@ -189,8 +181,8 @@ fn write(
             .iter()
             .map(|p| {
                 (
-                    p.lateral + noise * gaussian(&mut rng),
-                    p.front + noise * gaussian(&mut rng),
+                    p.lateral + noise * standard_normal(&mut rng),
+                    p.front + noise * standard_normal(&mut rng),
                 )
             })
             .collect();

@@ -56,6 +56,13 @@ pub fn scenario_rng(seed: u64, index: u64) -> ChaCha8Rng {
     rng
 }
 
+/// A standard normal draw from `rng` (Box-Muller, two uniform draws).
+pub fn standard_normal(rng: &mut impl Rng) -> f64 {
+    let u: f64 = 1.0 - rng.random::<f64>();
+    let v: f64 = rng.random();
+    (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+}
+
 /// The stratum (position cell, speed cell) of scenario `index`.
 pub fn stratum(config: &Config, index: usize) -> (usize, usize) {
     let [np, nv] = config.sampling.strata;
