@@ -203,6 +203,12 @@ pub struct SimConfig {
     /// Simultaneous when absent (files written before it existed).
     #[serde(default)]
     pub projection_order: ProjectionOrder,
+    /// With `projection_order = "shared"`: the share of its bound's correction each end of a
+    /// projected pair takes, in [0.5, 1] (ours; 0.5 when absent: the closing speed corrected
+    /// once). 1 corrects it from both ends, as the simultaneous order does; in between, the
+    /// pair overshoots by `2 share - 1` of it and an alternation decays by that factor a step.
+    #[serde(default = "default_shared_correction")]
+    pub shared_correction: f64,
     /// With `feasibility`: also hold a ramp vehicle able to stop before `x_c` while entering
     /// the target lane is not safe (the merge gate, [`crate::world::merge_gate`]). Off when
     /// absent (files written before it existed).
@@ -407,6 +413,24 @@ pub struct TrainConfig {
     /// `reward.epsilon` over the first `train.continuation.epochs` epochs (none when absent).
     #[serde(default)]
     pub continuation: Option<ContinuationConfig>,
+    /// The training world's `sim.shared_correction` starts at `start` and moves linearly to
+    /// the configured one between two epochs (none when absent).
+    #[serde(default)]
+    pub correction_continuation: Option<CorrectionContinuation>,
+}
+
+/// A continuation of the shared projection's correction (ours): training starts in a world
+/// whose projected pairs each take `start` of their correction (1: the simultaneous order's
+/// double push) and moves to the configured `sim.shared_correction` from epoch `epochs[0]` to
+/// epoch `epochs[1]`; the probe, screening, checkpoints' curves and every evaluation use the
+/// configured world, which is the one the policy ends its training in.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CorrectionContinuation {
+    /// `sim.shared_correction` of the first epochs, in [0.5, 1].
+    pub start: f64,
+    /// The epochs at which the move to the configured value begins and ends.
+    pub epochs: [usize; 2],
 }
 
 /// A continuation of the pair terms' cap (graduated non-convexity): every pair penalty of
@@ -450,6 +474,10 @@ fn yes() -> bool {
 
 fn default_b_safe() -> f64 {
     4.0
+}
+
+fn default_shared_correction() -> f64 {
+    0.5
 }
 
 /// SUMO's default driver reaction time (Krauss's `tau`).
@@ -628,6 +656,11 @@ impl Config {
         non_negative("sim.safety_gap", m.safety_gap)?;
         non_negative("sim.time_headway", m.time_headway)?;
         positive("sim.b_safe", m.b_safe)?;
+        check(
+            "sim.shared_correction",
+            (0.5..=1.0).contains(&m.shared_correction),
+            format!("{} must lie in [0.5, 1]", m.shared_correction),
+        )?;
         non_negative("sim.reaction_time", m.reaction_time)?;
         if let Some(b) = m.lane_end_brake {
             check(
@@ -733,6 +766,26 @@ impl Config {
                 "train.continuation.epochs",
                 c.epochs >= 1,
                 "must be at least 1".into(),
+            )?;
+        }
+        if let Some(c) = &t.correction_continuation {
+            check(
+                "train.correction_continuation.start",
+                (0.5..=1.0).contains(&c.start),
+                format!("{} must lie in [0.5, 1]", c.start),
+            )?;
+            check(
+                "train.correction_continuation.epochs",
+                c.epochs[0] <= c.epochs[1] && c.epochs[1] <= t.epochs,
+                format!(
+                    "{:?} must be ordered and at most train.epochs ({})",
+                    c.epochs, t.epochs
+                ),
+            )?;
+            check(
+                "train.correction_continuation",
+                self.sim.projection_order == ProjectionOrder::Shared,
+                "needs sim.projection_order = \"shared\"".into(),
             )?;
         }
         if let Some(n) = &t.near_merge {

@@ -174,6 +174,11 @@ fn cases() -> Vec<Case> {
             smoke().replacen("b_safe = 4.0", "b_safe = 4.0\nlane_end_brake = 12.0", 1),
             "sim.lane_end_brake",
         ),
+        demo(
+            "shared correction below half",
+            smoke().replacen("b_safe = 4.0", "b_safe = 4.0\nshared_correction = 0.3", 1),
+            "sim.shared_correction",
+        ),
         demo("inverted speed limits", smoke_with("v_max", "-1.0"), "v_max"),
         demo(
             "inverted headway range",

@@ -402,7 +402,12 @@ fn across_lanes_a_target_lane_car_keeps_its_ttc_to_the_ramp_vehicles_beside_it()
 fn pair_actions(order: mpgdrive::config::ProjectionOrder, steps: usize) -> Vec<[f64; 2]> {
     let mut config = common::paper();
     config.sim.projection_order = order;
-    let mut o = opts(&config, 1);
+    pair_actions_in(&config, steps)
+}
+
+/// [`pair_actions`] in `config`'s world.
+fn pair_actions_in(config: &mpgdrive::config::Config, steps: usize) -> Vec<[f64; 2]> {
+    let mut o = opts(config, 1);
     o.recording = Recording::Full;
     o.steps = steps;
     let s = scene(vec![
@@ -410,7 +415,7 @@ fn pair_actions(order: mpgdrive::config::ProjectionOrder, steps: usize) -> Vec<[
         car(120.0, 10.0, false),
         car(100.0, 14.0, false),
     ]);
-    let out = rollout(&config, &o, &[s], || Fixed(vec![0.0, -3.0, 3.0]))
+    let out = rollout(config, &o, &[s], || Fixed(vec![0.0, -3.0, 3.0]))
         .pop()
         .unwrap();
     let t = out.trajectory.unwrap();
@@ -473,4 +478,31 @@ fn the_shared_projection_halves_a_pairs_correction_and_settles() {
     let follow: Vec<f64> = a.iter().map(|x| x[1]).collect();
     let flips = (longest_alternation(&lead), longest_alternation(&follow));
     assert!(flips.0 <= 1 && flips.1 <= 1, "{flips:?}");
+}
+
+#[test]
+fn a_larger_shared_correction_overshoots_and_its_alternation_decays() {
+    use mpgdrive::config::ProjectionOrder::Shared;
+    use mpgdrive::eval::scenario_sets::longest_alternation;
+    // The pair above with each end taking 3/4 of its correction. Step 2 (see the halving
+    // test): the push +3.4667 and the hold -3.4667 scale to +-2.6, 1.5 times the closing
+    // speed to correct, so the pair overshoots by half of it. Each later step flips the sign
+    // of the pair's excess and halves it: the leader's actions go -0.44, +1.32, +0.26, +0.78
+    // and settle near the halving order's, within a second, where the simultaneous order's
+    // flips never stop.
+    let mut config = common::paper();
+    config.sim.projection_order = Shared;
+    config.sim.shared_correction = 0.75;
+    let a = pair_actions_in(&config, 200);
+    assert_abs_diff_eq!(a[0][0], -2.0, epsilon = 1e-9);
+    assert_abs_diff_eq!(a[1][0], 2.6, epsilon = 1e-9);
+    assert_abs_diff_eq!(a[1][1], -2.6, epsilon = 1e-9);
+    let lead: Vec<f64> = a.iter().map(|x| x[0]).collect();
+    let follow: Vec<f64> = a.iter().map(|x| x[1]).collect();
+    let flips = (longest_alternation(&lead), longest_alternation(&follow));
+    assert!(flips.0 > 1 && flips.0 < 10 && flips.1 < 10, "{flips:?}");
+    // At 1 the shared order is the simultaneous one, bit for bit.
+    config.sim.shared_correction = 1.0;
+    let simultaneous = pair_actions(mpgdrive::config::ProjectionOrder::Simultaneous, 200);
+    assert_eq!(pair_actions_in(&config, 200), simultaneous);
 }

@@ -108,11 +108,16 @@ fn engines_agree_with_constant_speed_players() {
 /// Checks both engines agree in `order` with constant-speed players (whose bounds bind) and in
 /// merge traffic; returns the ungated configuration in that order.
 fn engines_agree_in(order: mpgdrive::config::ProjectionOrder) -> Config {
+    engines_agree_with(order, 0.5)
+}
+
+/// [`engines_agree_in`] with each projected end taking `share` of its correction.
+fn engines_agree_with(order: mpgdrive::config::ProjectionOrder, share: f64) -> Config {
     let mut config = ungated();
-    config.sim.projection_order = order;
+    (config.sim.projection_order, config.sim.shared_correction) = (order, share);
     assert!(compare(&config, Driver::Idm, Driver::ConstSpeed, true, true) > 0);
     let mut traffic = common::traffic();
-    traffic.sim.projection_order = order;
+    (traffic.sim.projection_order, traffic.sim.shared_correction) = (order, share);
     traffic_engines_agree(&traffic);
     config
 }
@@ -147,6 +152,9 @@ fn engines_agree_in_the_shared_projection_order() {
     // players close in on each other, so pushes and holds bind; in merge traffic the human
     // drivers are not projected and take no half.
     engines_agree_in(mpgdrive::config::ProjectionOrder::Shared);
+    // Each end taking 3/4 (configs/paper.toml's), where the two engines' pushes differ from
+    // the halves above.
+    engines_agree_with(mpgdrive::config::ProjectionOrder::Shared, 0.75);
 }
 
 #[test]

@@ -372,6 +372,27 @@ fn the_continuation_decays_epsilon_geometrically_to_the_rewards() {
 }
 
 #[test]
+fn the_correction_continuation_holds_its_start_then_moves_linearly_to_the_worlds() {
+    let mut config = smoke();
+    config.sim.projection_order = mpgdrive::config::ProjectionOrder::Shared;
+    config.sim.shared_correction = 0.75;
+    assert_eq!(mpgdrive::train::training_shared_correction(&config, 0), 0.75);
+    config.train.correction_continuation = Some(mpgdrive::config::CorrectionContinuation {
+        start: 1.0,
+        epochs: [2, 6],
+    });
+    // 1 until epoch 2, then 1 - 0.25 (e - 2) / 4: 0.9375, 0.875, 0.8125, and 0.75 from 6 on.
+    let share: Vec<f64> = (0..8)
+        .map(|e| mpgdrive::train::training_shared_correction(&config, e))
+        .collect();
+    assert_eq!(share, [1.0, 1.0, 1.0, 0.9375, 0.875, 0.8125, 0.75, 0.75]);
+    // Without the shared order there is no correction to move.
+    config.sim.projection_order = mpgdrive::config::ProjectionOrder::Simultaneous;
+    let refused = config.validate().unwrap_err().to_string();
+    assert!(refused.contains("train.correction_continuation"), "{refused}");
+}
+
+#[test]
 fn a_continuation_changes_only_the_training_rewards_epsilon() {
     let mut config = smoke();
     config.train.epochs = 3;

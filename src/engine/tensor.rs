@@ -362,7 +362,7 @@ fn limits_once(
                 projected(Which::LaneFollower, &follow),
                 projected(Which::LaneLeader, &lead),
             );
-            share_bounds(&lo, &hi, &f, &l)
+            share_bounds(&lo, &hi, [&f, &l], rules.shared_correction)
         } else {
             (lo, hi)
         };

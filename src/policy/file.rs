@@ -92,7 +92,7 @@ pub fn paths(base: &Path) -> (PathBuf, PathBuf) {
 
 /// The world rules a trained policy's behaviour rests on, by configuration key: the step, the
 /// limits, the vehicle box, the geometry and the feasibility rules (flags as 0 or 1).
-fn world_rules(c: &Config) -> [(&'static str, f64); 22] {
+fn world_rules(c: &Config) -> [(&'static str, f64); 23] {
     let flag = |b: bool| if b { 1.0 } else { 0.0 };
     [
         ("sim.dt", c.sim.dt),
@@ -115,6 +115,7 @@ fn world_rules(c: &Config) -> [(&'static str, f64); 22] {
                 crate::config::ProjectionOrder::Shared => 2.0,
             },
         ),
+        ("sim.shared_correction", c.sim.shared_correction),
         ("sim.merge_gate", flag(c.sim.merge_gate)),
         ("sim.b_safe", c.sim.b_safe),
         (

@@ -232,6 +232,25 @@ pub fn training_epsilon(config: &Config, epoch: usize) -> f64 {
     }
 }
 
+/// The training world's `sim.shared_correction` in epoch `epoch`: the configured one, or
+/// `train.correction_continuation`'s `start` until its first epoch, then linearly to the
+/// configured one by its last.
+pub fn training_shared_correction(config: &Config, epoch: usize) -> f64 {
+    let end = config.sim.shared_correction;
+    match &config.train.correction_continuation {
+        Some(c) if epoch < c.epochs[1] => {
+            let [from, to] = c.epochs;
+            let progress = if epoch <= from {
+                0.0
+            } else {
+                (epoch - from) as f64 / (to - from) as f64
+            };
+            c.start + (end - c.start) * progress
+        }
+        _ => end,
+    }
+}
+
 /// Networks trained together: the stacked parameters, their optimiser, and each member's
 /// training seed (whose stream gives its minibatches).
 struct Stack {
@@ -271,6 +290,7 @@ impl Stack {
         let members = self.seeds.len();
         let mut epoch_config = config.clone();
         epoch_config.reward.epsilon = training_epsilon(config, epoch);
+        epoch_config.sim.shared_correction = training_shared_correction(config, epoch);
         let shards = shards_of(&self.net, &scenes, members);
         let mode = self.mode;
         let results = workers.run(shards, move |(net, scenes)| {

@@ -37,6 +37,9 @@ pub struct WorldRules {
     pub time_headway: f64,
     /// The order in which the feasibility projection settles vehicles (`sim.projection_order`).
     pub order: ProjectionOrder,
+    /// The share of a projected pair's correction each end takes in the shared order
+    /// (`sim.shared_correction`).
+    pub shared_correction: f64,
     /// Whether the merge gate holds ramp vehicles when the feasibility rules are on.
     pub merge_gate: bool,
     /// The merge gate's parameters (clearance, braking, horizon).
@@ -80,6 +83,7 @@ impl WorldRules {
             tau_s: config.sim.tau_s,
             time_headway: config.sim.time_headway,
             order: config.sim.projection_order,
+            shared_correction: config.sim.shared_correction,
             merge_gate: config.sim.merge_gate,
             gate: GateRules::new(config),
             players_make_room: config.sim.players_make_room,

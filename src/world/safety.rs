@@ -145,14 +145,15 @@ pub fn feasible_interval_after<T: Num>(
 }
 
 /// The shared projection order's bounds: where the follower is projected too
-/// (`follower_shares` 1), a push `lo > 0` is halved; where the leader is (`leader_shares` 1), a
-/// hold `hi < 0` is halved. The other half is the neighbour's own bound's.
-pub fn share_bounds<T: Num>(lo: &T, hi: &T, follower_shares: &T, leader_shares: &T) -> (T, T) {
+/// (`follower_shares` 1), a push `lo > 0` is scaled to `share` of it; where the leader is
+/// (`leader_shares` 1), a hold `hi < 0` is. The rest is the neighbour's own bound's (all of
+/// it at `share = 0.5`).
+pub fn share_bounds<T: Num>(lo: &T, hi: &T, [follower_shares, leader_shares]: [&T; 2], share: f64) -> (T, T) {
     let push = lo.clamp_c(0.0, NO_BOUND);
     let hold = hi.clamp_c(-NO_BOUND, 0.0);
     (
-        T::select(follower_shares, &lo.sub(&push.mul_c(0.5)), lo),
-        T::select(leader_shares, &hi.sub(&hold.mul_c(0.5)), hi),
+        T::select(follower_shares, &lo.sub(&push.mul_c(1.0 - share)), lo),
+        T::select(leader_shares, &hi.sub(&hold.mul_c(1.0 - share)), hi),
     )
 }
 

@@ -118,8 +118,8 @@ pub fn applied_action_with(
             (lo, hi) = share_bounds(
                 &lo,
                 &hi,
-                &flag(settled.projected.follower),
-                &flag(settled.projected.leader),
+                [&flag(settled.projected.follower), &flag(settled.projected.leader)],
+                rules.shared_correction,
             );
         }
         if rules.feasibility_across_lanes && !me.on_ramp {
