@@ -92,8 +92,9 @@ pub enum ProjectionOrder {
     /// step, already settled. A closing speed is corrected once.
     Sequential,
     /// Ours: every vehicle at once, as the paper's, but a leader and its follower that are
-    /// both projected share the correction of their pair: each takes half of what its bound
-    /// asks beyond keeping its speed, so a closing speed is corrected once, in one pass.
+    /// both projected share the correction of their pair: each takes `sim.shared_correction`
+    /// of what its bound asks beyond keeping its speed (at 0.5 a closing speed is corrected
+    /// once, in one pass; above it the pair's alternation decays).
     Shared,
 }
 

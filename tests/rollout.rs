@@ -401,7 +401,8 @@ fn across_lanes_a_target_lane_car_keeps_its_ttc_to_the_ramp_vehicles_beside_it()
 /// target lane, raw -3 and +3 m/s^2, with the ego far behind on the ramp, over `steps`.
 fn pair_actions(order: mpgdrive::config::ProjectionOrder, steps: usize) -> Vec<[f64; 2]> {
     let mut config = common::paper();
-    config.sim.projection_order = order;
+    // The shared order at its default, halving (`configs/paper.toml` has each end take 3/4).
+    (config.sim.projection_order, config.sim.shared_correction) = (order, 0.5);
     pair_actions_in(&config, steps)
 }
 

@@ -48,10 +48,12 @@
 //! leader's speed after this step, already settled ([`feasible_interval_after`]); the
 //! closing speed is corrected once.
 //! Shared (ours): at once, as the paper's, but where a leader and its follower are both
-//! projected each takes half of what its bound asks beyond keeping its speed
-//! ([`share_bounds`]). With `time_headway = 0` the leader's push `lo > 0` and the follower's
-//! hold `hi = -lo` are the same closing speed seen from both ends, so the halves add up to it
-//! once, in one pass, which the training's gradient follows exactly.
+//! projected each takes a share `s` (`sim.shared_correction`) of what its bound asks beyond
+//! keeping its speed ([`share_bounds`]). With `time_headway = 0` the leader's push `lo > 0` and
+//! the follower's hold `hi = -lo` are the same closing speed seen from both ends, so at
+//! `s = 0.5` the halves add up to it once, in one pass, which the training's gradient follows
+//! exactly. Above 0.5 the pair overshoots: the excess becomes `1 - 2 s` times itself a step,
+//! so it flips and decays (halving at 0.75); at 1 this is the simultaneous order's 2-cycle.
 //!
 //! **Empty interval** (`lo > hi`: no action keeps both TTCs): the leader bound wins. The
 //! vehicle applies `hi`, the largest action that keeps its TTC to its leader (clipped to
