@@ -176,7 +176,7 @@ fn cases() -> Vec<Case> {
         ),
         demo(
             "shared correction below half",
-            smoke().replacen("b_safe = 4.0", "b_safe = 4.0\nshared_correction = 0.3", 1),
+            smoke_with("shared_correction", "0.3"),
             "sim.shared_correction",
         ),
         demo("inverted speed limits", smoke_with("v_max", "-1.0"), "v_max"),
