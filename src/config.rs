@@ -657,11 +657,7 @@ impl Config {
         non_negative("sim.safety_gap", m.safety_gap)?;
         non_negative("sim.time_headway", m.time_headway)?;
         positive("sim.b_safe", m.b_safe)?;
-        check(
-            "sim.shared_correction",
-            (0.5..=1.0).contains(&m.shared_correction),
-            format!("{} must lie in [0.5, 1]", m.shared_correction),
-        )?;
+        within("sim.shared_correction", m.shared_correction, 0.5, 1.0)?;
         non_negative("sim.reaction_time", m.reaction_time)?;
         if let Some(b) = m.lane_end_brake {
             check(
@@ -770,11 +766,7 @@ impl Config {
             )?;
         }
         if let Some(c) = &t.correction_continuation {
-            check(
-                "train.correction_continuation.start",
-                (0.5..=1.0).contains(&c.start),
-                format!("{} must lie in [0.5, 1]", c.start),
-            )?;
+            within("train.correction_continuation.start", c.start, 0.5, 1.0)?;
             check(
                 "train.correction_continuation.epochs",
                 c.epochs[0] <= c.epochs[1] && c.epochs[1] <= t.epochs,
@@ -791,11 +783,7 @@ impl Config {
         }
         if let Some(n) = &t.near_merge {
             finite("train.near_merge.share", n.share)?;
-            check(
-                "train.near_merge.share",
-                (0.0..=1.0).contains(&n.share),
-                format!("{} must lie in [0, 1]", n.share),
-            )?;
+            within("train.near_merge.share", n.share, 0.0, 1.0)?;
             range(
                 "train.near_merge.ego_position",
                 n.ego_position,
@@ -850,11 +838,7 @@ impl Config {
             range("traffic.desired_speed", d, 1.0, self.vehicle.v_max)?;
         }
         finite("traffic.ahead_share", t.ahead_share)?;
-        check(
-            "traffic.ahead_share",
-            (0.0..=1.0).contains(&t.ahead_share),
-            format!("{} must lie in [0, 1]", t.ahead_share),
-        )
+        within("traffic.ahead_share", t.ahead_share, 0.0, 1.0)
     }
 }
 
@@ -884,6 +868,15 @@ pub(crate) fn non_negative(key: &str, x: f64) -> Result<(), ConfigError> {
 }
 
 /// `[min, max]` with `lo <= min <= max <= hi`, all finite.
+/// `x` in `[lo, hi]` (NaN is not).
+fn within(key: &str, x: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+    check(
+        key,
+        (lo..=hi).contains(&x),
+        format!("{x} must lie in [{lo}, {hi}]"),
+    )
+}
+
 fn range(key: &str, r: [f64; 2], lo: f64, hi: f64) -> Result<(), ConfigError> {
     finite(key, r[0])?;
     finite(key, r[1])?;
