@@ -38,6 +38,8 @@ command -v sumo >/dev/null 2>&1 && [ -f /usr/include/libsumo/Simulation.h ] || m
 dpkg-query -W -f='${Status}' libclang-dev 2>/dev/null | grep -q "ok installed" || missing+=(libclang-dev)
 # The tests run `cosim --gui` on a virtual display.
 command -v xvfb-run >/dev/null 2>&1 || missing+=(xvfb)
+# The tests train under QEMU's Intel and AMD processor models (the same weights on both).
+command -v qemu-x86_64 >/dev/null 2>&1 || missing+=(qemu-user)
 command -v xauth >/dev/null 2>&1 || missing+=(xauth)
 if [ ${#missing[@]} -gt 0 ]; then
   if [ "$(id -u)" -ne 0 ]; then

@@ -8,6 +8,7 @@ use mpgdrive::policy::observation::Layout;
 use mpgdrive::policy::{NetSpec, PolicyNet};
 use mpgdrive::train::{Mode, TrainRun, curves, train, train_all};
 use std::path::PathBuf;
+use std::process::Command;
 use std::sync::atomic::AtomicBool;
 use tch::Tensor;
 
@@ -463,8 +464,20 @@ fn screening_keeps_the_initialisation_with_the_best_probe_objective() {
 
 /// The smoke training through the command line, with `env` added; the weights' bytes.
 fn trained_bytes(name: &str, env: &[(&str, &str)]) -> Vec<u8> {
+    trained_bytes_on(name, env, common::bin())
+}
+
+/// [`trained_bytes`] with the binary run by `qemu-x86_64` as processor model `cpu`.
+fn trained_bytes_emulated(name: &str, cpu: &str) -> Vec<u8> {
+    let mut qemu = std::process::Command::new("qemu-x86_64");
+    qemu.args(["-cpu", cpu, env!("CARGO_BIN_EXE_mpgdrive")]);
+    qemu.current_dir(env!("CARGO_MANIFEST_DIR"));
+    trained_bytes_on(name, &[], qemu)
+}
+
+fn trained_bytes_on(name: &str, env: &[(&str, &str)], mut mpgdrive: Command) -> Vec<u8> {
     let dir = out_dir(name);
-    let out = common::bin()
+    let out = mpgdrive
         .args(["train", "--config", "configs/smoke.toml", "--seeds", "0", "--out"])
         .arg(&dir)
         .envs(env.iter().copied())
@@ -474,6 +487,32 @@ fn trained_bytes(name: &str, env: &[(&str, &str)]) -> Vec<u8> {
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     std::fs::read(dir.join("seed0.safetensors")).unwrap()
+}
+
+#[test]
+fn training_gives_the_same_bytes_on_intel_and_amd_processors() {
+    // QEMU's user-mode emulator runs the binary as an Intel Haswell and as an AMD EPYC (both
+    // AVX2, no AVX-512), each telling MKL its vendor. Its approximate instructions (reciprocal
+    // square root and the like) round otherwise than either vendor's silicon, so a kernel
+    // that follows the processor shows here: while Adam's square root was MKL's, the weights
+    // differed from this processor's under both models.
+    let found = Command::new("qemu-x86_64").arg("--version").output();
+    assert!(
+        found.is_ok(),
+        "qemu-x86_64 is missing: scripts/setup.sh installs it (qemu-user)"
+    );
+    let own = trained_bytes("vendor-own", &[]);
+    std::thread::scope(|s| {
+        let runs = ["Haswell-noTSX", "EPYC-Rome"].map(|cpu| {
+            (
+                cpu,
+                s.spawn(move || trained_bytes_emulated(&format!("vendor-{cpu}"), cpu)),
+            )
+        });
+        for (cpu, run) in runs {
+            assert!(own == run.join().unwrap(), "other weights as {cpu}");
+        }
+    });
 }
 
 #[test]

@@ -9,7 +9,10 @@
 //! variable once, at their first use, so [`pin`] sets them before libtorch runs anything.
 //! Measured on a 20-epoch paper training and checked on the smoke training (`tests/train.rs`):
 //! the weights no longer change with `MKL_ENABLE_INSTRUCTIONS=AVX2` or `SSE4_2`; training takes
-//! about 1.6x as long (MKL's compatible matrix product is its SSE2 one).
+//! about 1.6x as long (MKL's compatible matrix product is its SSE2 one). Pinning is not all:
+//! MKL's square root follows the processor's approximate instructions on every branch, so
+//! training takes none (Adam's is Rust's, [`crate::train::adam`]); the same test trains under
+//! QEMU's Intel and AMD processor models and compares the bytes.
 
 /// The environment variables [`pin`] sets, and their values.
 pub const PINNED: [(&str, &str); 2] = [("MKL_CBWR", "COMPATIBLE"), ("ATEN_CPU_CAPABILITY", "avx2")];
