@@ -469,12 +469,13 @@ fn trained_bytes(name: &str, env: &[(&str, &str)]) -> Vec<u8> {
 
 /// [`trained_bytes`] with the binary run by `qemu-x86_64` as processor model `cpu`.
 fn trained_bytes_emulated(name: &str, cpu: &str) -> Vec<u8> {
-    let mut qemu = std::process::Command::new("qemu-x86_64");
+    let mut qemu = Command::new("qemu-x86_64");
     qemu.args(["-cpu", cpu, env!("CARGO_BIN_EXE_mpgdrive")]);
     qemu.current_dir(env!("CARGO_MANIFEST_DIR"));
     trained_bytes_on(name, &[], qemu)
 }
 
+/// [`trained_bytes`] with `mpgdrive` (a command that runs the binary) in place of the binary.
 fn trained_bytes_on(name: &str, env: &[(&str, &str)], mut mpgdrive: Command) -> Vec<u8> {
     let dir = out_dir(name);
     let out = mpgdrive
