@@ -464,22 +464,48 @@ fn screening_keeps_the_initialisation_with_the_best_probe_objective() {
 
 /// The smoke training through the command line, with `env` added; the weights' bytes.
 fn trained_bytes(name: &str, env: &[(&str, &str)]) -> Vec<u8> {
-    trained_bytes_on(name, env, common::bin())
+    trained_bytes_on(name, SMOKE, env, common::bin())
 }
 
-/// [`trained_bytes`] with the binary run by `qemu-x86_64` as processor model `cpu`.
-fn trained_bytes_emulated(name: &str, cpu: &str) -> Vec<u8> {
+/// The paper's world, tiny (the smoke configuration).
+const SMOKE: &str = "configs/smoke.toml";
+
+/// [`trained_bytes_on`] with the binary run by `qemu-x86_64` as processor model `cpu`.
+fn trained_bytes_emulated(name: &str, config: &str, cpu: &str) -> Vec<u8> {
     let mut qemu = Command::new("qemu-x86_64");
     qemu.args(["-cpu", cpu, env!("CARGO_BIN_EXE_mpgdrive")]);
     qemu.current_dir(env!("CARGO_MANIFEST_DIR"));
-    trained_bytes_on(name, &[], qemu)
+    trained_bytes_on(name, config, &[], qemu)
 }
 
-/// [`trained_bytes`] with `mpgdrive` (a command that runs the binary) in place of the binary.
-fn trained_bytes_on(name: &str, env: &[(&str, &str)], mut mpgdrive: Command) -> Vec<u8> {
+/// `configs/traffic.toml` (the merge-traffic world of `policies/traffic`) made tiny: a 10 s
+/// horizon, 16 hidden units, 6 epochs of 8 states, two initialisations screened for 2 epochs.
+/// Returns the path it is written to.
+fn tiny_traffic_config() -> String {
+    let mut text = std::fs::read_to_string("configs/traffic.toml").unwrap();
+    for (from, to) in [
+        ("horizon = 30.0", "horizon = 10.0"),
+        ("hidden = 64", "hidden = 16"),
+        ("epochs = 300", "epochs = 6"),
+        ("batch = 64", "batch = 8"),
+        ("probe_scenarios = 64", "probe_scenarios = 8"),
+        ("init_candidates = 4", "init_candidates = 2"),
+        ("screen_epochs = 30", "screen_epochs = 2"),
+    ] {
+        assert_eq!(text.matches(from).count(), 1, "configs/traffic.toml: {from}");
+        text = text.replace(from, to);
+    }
+    let path = out_dir("tiny-traffic").join("traffic.toml");
+    std::fs::write(&path, text).unwrap();
+    path.to_str().unwrap().to_owned()
+}
+
+/// The training of `config` through the command line for seed 0, `mpgdrive` (a command that
+/// runs the binary) with `env` added; the weights' bytes.
+fn trained_bytes_on(name: &str, config: &str, env: &[(&str, &str)], mut mpgdrive: Command) -> Vec<u8> {
     let dir = out_dir(name);
     let out = mpgdrive
-        .args(["train", "--config", "configs/smoke.toml", "--seeds", "0", "--out"])
+        .args(["train", "--config", config, "--seeds", "0", "--out"])
         .arg(&dir)
         .envs(env.iter().copied())
         .env_remove("MKL_CBWR")
@@ -502,16 +528,31 @@ fn training_gives_the_same_bytes_on_intel_and_amd_processors() {
         found.is_ok(),
         "qemu-x86_64 is missing: scripts/setup.sh installs it (qemu-user)"
     );
-    let own = trained_bytes("vendor-own", &[]);
+    // The paper's world (smoke) under both models, and the merge-traffic world of
+    // `policies/traffic` (its own vehicles, drivers and entry rule) as the Intel one.
+    let traffic = tiny_traffic_config();
+    let smoke_own = trained_bytes("vendor-own", &[]);
+    let traffic_own = trained_bytes_on("vendor-own-traffic", &traffic, &[], common::bin());
     std::thread::scope(|s| {
-        let runs = ["Haswell-noTSX", "EPYC-Rome"].map(|cpu| {
+        let runs = [
+            (SMOKE, &smoke_own, "Haswell-noTSX"),
+            (SMOKE, &smoke_own, "EPYC-Rome"),
+            (traffic.as_str(), &traffic_own, "Haswell-noTSX"),
+        ]
+        .map(|(config, own, cpu)| {
+            let name = format!(
+                "vendor-{cpu}-{}",
+                if config == SMOKE { "smoke" } else { "traffic" }
+            );
             (
+                config,
+                own,
                 cpu,
-                s.spawn(move || trained_bytes_emulated(&format!("vendor-{cpu}"), cpu)),
+                s.spawn(move || trained_bytes_emulated(&name, config, cpu)),
             )
         });
-        for (cpu, run) in runs {
-            assert!(own == run.join().unwrap(), "other weights as {cpu}");
+        for (config, own, cpu, run) in runs {
+            assert!(*own == run.join().unwrap(), "{config}: other weights as {cpu}");
         }
     });
 }
