@@ -92,13 +92,13 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
         assert_eq!(r["policy_seeds"], serde_json::json!(seeds), "{}", r["controller"]);
         // The speed profile covers the control zone in 20 m bands without a hole (picked up
         // at 80 m, 117.5 m before the world's x_c: the ramp's end at 200 m less half a length;
-        // released 50 m past it), and its step-weighted mean lies within the finished egos'
-        // own mean speeds.
+        // released 200 m past it, merge.toml's `release_after`), and its step-weighted mean
+        // lies within the finished egos' own mean speeds.
         let bands = r["speed_by_position"].as_array().unwrap();
         let num = |b: &serde_json::Value, k: &str| b[k].as_f64().unwrap();
         assert!(!bands.is_empty(), "{r}");
         assert_eq!(num(&bands[0], "from"), -120.0, "{}", r["controller"]);
-        assert!(num(bands.last().unwrap(), "to") <= 60.0);
+        assert!(num(bands.last().unwrap(), "to") <= 200.0);
         for pair in bands.windows(2) {
             assert_eq!(num(&pair[0], "to"), num(&pair[1], "from"));
         }
@@ -123,11 +123,11 @@ fn three_controllers_run_side_by_side_and_write_their_results() {
             "{mean} outside {lo}..{hi}"
         );
         // The target lane's profile covers the same zone, whoever drives: from the pick-up
-        // point's band to the release point's ([40, 60)), at speeds a car can have.
+        // point's band to the release point's ([180, 200)), at speeds a car can have.
         let lane = r["lane_speed_by_position"].as_array().unwrap();
         assert_eq!(num(&lane[0], "from"), -120.0, "{}", r["controller"]);
-        assert_eq!(num(lane.last().unwrap(), "to"), 60.0, "{}", r["controller"]);
-        assert_eq!(lane.len(), 9);
+        assert_eq!(num(lane.last().unwrap(), "to"), 200.0, "{}", r["controller"]);
+        assert_eq!(lane.len(), 16);
         assert!(
             lane.iter()
                 .all(|b| (0.0..=30.0).contains(&num(b, "mean_speed")) && num(b, "steps") > 0.0)

@@ -308,7 +308,7 @@ fn keys_of(merge: &Merge) -> String {
          control_from = {control_from:.1}            # egos are picked up here: 120 m before the ramp's end, where a traffic\n\
          #                                  policy's x_c is (training starts them 40-120 m before x_c), or 10 m before an\n\
          #                                  acceleration lane if that is earlier, and not before the ramp begins\n\
-         release_after = 50.0             # a merged ego is released 50 m past x_c\n\
+         release_after = 200.0            # a merged ego is released 200 m past x_c (training's road reaches 220 m past it)\n\
          {merge_from}\
          ramp_lanes = {ramp}   # in driving order, the lane that ends last\n\
          target_lanes = {target}   # in driving order\n\
