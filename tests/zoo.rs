@@ -155,6 +155,35 @@ fn at_a_junction_merge_the_entry_rule_alone_keeps_the_policy_safe() {
     }
 }
 
+/// A zoo network `net build ARGS --ramp-flow 400 --duration 600` in `root`/net, with `routes`
+/// at demand `scale` and seed 0 (`routes` arguments `extra` on top): the network's folder and
+/// the route file, relative to it.
+fn zoo_routes(root: &Outside, args: &str, scale: &str, extra: &[&str]) -> (PathBuf, String) {
+    let dir = root.0.join("net");
+    build(&dir, &format!("{args} --ramp-flow 400 --duration 600"));
+    let out = mpgdrive_in(&dir, &root.0.join("cache"))
+        .args([
+            "routes",
+            "--base",
+            "merge.rou.xml",
+            "--merge",
+            "merge.toml",
+            "--scales",
+            scale,
+        ])
+        .args(extra)
+        .args(["--seeds", "0", "--duration", "600", "--out", "routes"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let written = std::fs::read_dir(dir.join("routes"))
+        .unwrap()
+        .map(|f| f.unwrap().file_name().into_string().unwrap())
+        .find(|f| f.ends_with(".rou.xml"))
+        .unwrap();
+    (dir, format!("routes/{written}"))
+}
+
 /// The controlled collisions of one zoo deployment without SUMO's safe speed (speed mode 0):
 /// the network `net build ARGS --ramp-flow 400 --duration 600`, `routes` at demand `scale`,
 /// `players` in merge.toml, `cosim --controllers mpg` with SUMO seed `seed` for `end` s.
@@ -167,30 +196,13 @@ fn zoo_collisions(
     end: &str,
 ) -> serde_json::Value {
     let root = Outside::new(name);
-    let dir = root.0.join("net");
-    build(&dir, &format!("{args} --ramp-flow 400 --duration 600"));
-    let cache = root.0.join("cache");
-    let out = mpgdrive_in(&dir, &cache)
-        .args([
-            "routes",
-            "--base",
-            "merge.rou.xml",
-            "--merge",
-            "merge.toml",
-            "--scales",
-            scale,
-        ])
-        .args(["--seeds", "0", "--duration", "600", "--out", "routes"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (dir, route) = zoo_routes(&root, args, scale, &[]);
     let toml = std::fs::read_to_string(dir.join("merge.toml")).unwrap();
     let chosen = toml.replace("players = \"controllable\"", &format!("players = \"{players}\""));
     std::fs::write(dir.join("merge_players.toml"), chosen).unwrap();
-    let route = format!("routes/merge_d{:.2}_s0.rou.xml", scale.parse::<f64>().unwrap());
     let runs = cosim_in(
         &dir,
-        &cache,
+        &root.0.join("cache"),
         &[
             "--route-files",
             &route,
@@ -209,6 +221,66 @@ fn zoo_collisions(
     let run = &runs[0];
     assert!(run["egos"].as_array().unwrap().len() >= 30, "{name}");
     run["collisions"].clone()
+}
+
+/// The mean speed (m/s) of the target lane's vehicles from 120 m before the conflict point to
+/// it, over a cosim run's `lane_speed_by_position` (weighted by steps).
+fn freeway_speed_before_the_merge(run: &serde_json::Value) -> f64 {
+    let bands = run["lane_speed_by_position"].as_array().unwrap();
+    let (sum, steps) = bands
+        .iter()
+        .filter(|b| b["from"].as_f64().unwrap() >= -120.0 && b["to"].as_f64().unwrap() <= 0.0)
+        .map(|b| (b["mean_speed"].as_f64().unwrap(), b["steps"].as_f64().unwrap()))
+        .fold((0.0, 0.0), |(s, n), (v, k)| (s + v * k, n + k));
+    sum / steps
+}
+
+#[test]
+fn at_a_junction_merge_players_drive_on_past_sumos_ramp_drivers_who_give_way() {
+    // The zoo's junction-v20, demand 1.2, 30% of the ramp's and of the freeway's vehicles
+    // playing, SUMO seed 0. SUMO's ramp drivers cross the stop line only once no freeway
+    // vehicle approaches; when players made room for them (and for the egos queued behind
+    // them), the players stood 30-120 m before the stop line and the freeway behind them at
+    // 0.5-1.9 m/s, against SUMO's drivers' 19.4 m/s. With the right of way it has, the freeway
+    // drives on as under SUMO's drivers.
+    let root = Outside::new("junction-share");
+    let args = "--form junction --speed 20 --lane-flow 600";
+    let share = [
+        "--controllable-share",
+        "0.3",
+        "--mainline-controllable-share",
+        "0.3",
+    ];
+    let (dir, route) = zoo_routes(&root, args, "1.2", &share);
+    let runs = cosim_in(
+        &dir,
+        &root.0.join("cache"),
+        &[
+            "--route-files",
+            &route,
+            "--controllers",
+            "mpg,sumo",
+            "--seed",
+            "0",
+            "--end",
+            "150",
+        ],
+    );
+    let (game, sumo) = (&runs[0], &runs[1]);
+    assert_eq!(
+        (game["controller"].as_str(), sumo["controller"].as_str()),
+        (Some("mpg"), Some("sumo"))
+    );
+    let (v_game, v_sumo) = (
+        freeway_speed_before_the_merge(game),
+        freeway_speed_before_the_merge(sumo),
+    );
+    assert!(v_sumo > 15.0, "{v_sumo}");
+    assert!(
+        v_game >= 0.8 * v_sumo,
+        "the game {v_game:.2} m/s, SUMO's drivers {v_sumo:.2} m/s"
+    );
+    assert_eq!(controlled_collisions(game), 0);
 }
 
 #[test]

@@ -152,6 +152,7 @@ impl TensorBatch {
                     .collect(),
                 humans: self.humans[b].clone(),
                 yields: self.yields[b].clone(),
+                gives_way: Vec::new(),
                 v_desired: self.own_desired[b],
             })
             .collect()

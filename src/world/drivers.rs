@@ -94,7 +94,7 @@ pub fn player_makes_room_for(road: &Road, scene: &Scene, i: usize) -> Option<usi
         return None;
     }
     (scene.vehicles.iter().enumerate())
-        .filter(|(_, r)| r.on_ramp && r.x > me.x && road.in_yield_zone(r.x))
+        .filter(|&(j, r)| r.on_ramp && r.x > me.x && road.in_yield_zone(r.x) && !scene.gives_way(j))
         .min_by(|(_, p), (_, q)| p.x.total_cmp(&q.x))
         .map(|(j, _)| j)
 }
@@ -187,6 +187,7 @@ mod tests {
             vehicles: vec![at(ramp.0, ramp.1, true), at(human.0, human.1, false)],
             humans: vec![false, true],
             yields: vec![yields; 2],
+            gives_way: Vec::new(),
             v_desired: None,
         };
         let (mut order, mut nb) = (Vec::new(), Vec::new());
@@ -257,6 +258,13 @@ mod tests {
             ..scene.clone()
         };
         assert_eq!(player_makes_room_for(&road, &human, 2), None);
+        // Nor does a player for a ramp vehicle that gives way to it (a junction's minor road).
+        let minor = Scene {
+            gives_way: vec![true, false, false],
+            ..scene.clone()
+        };
+        assert_eq!(player_makes_room_for(&road, &minor, 2), None);
+        assert_eq!(act(&config, &minor, 2), 0.0);
         config.sim.players_make_room = false;
         assert_eq!(act(&config, &scene, 2), 0.0);
     }

@@ -30,6 +30,12 @@ pub struct Scene {
     /// Which vehicles, when a human drives them, make room for a ramp vehicle in the merge zone
     /// ahead of them (`traffic.cooperation`), by index. Empty: none.
     pub yields: Vec<bool>,
+    /// Which ramp vehicles give way to every vehicle approaching on the target lane, by index:
+    /// the drivers of a priority junction's minor road (SUMO's, at a junction merge). No
+    /// player makes room for them (`sim.players_make_room`): room made by slowing is never
+    /// taken, as they go only once the target lane before them is clear. Empty: none (every
+    /// ramp vehicle enters by the entry rule, training's world).
+    pub gives_way: Vec<bool>,
     /// The scene's desired speed `v_d` (m/s): the speed the reward's speed term tracks, and
     /// (scaled by `v_d / reward.v_desired`) the IDM drivers' `v0`. None: the configuration's
     /// `reward.v_desired` (the paper's world). Merge traffic draws it per scene
@@ -44,6 +50,7 @@ impl Scene {
             vehicles,
             humans: Vec::new(),
             yields: Vec::new(),
+            gives_way: Vec::new(),
             v_desired: None,
         }
     }
@@ -61,6 +68,12 @@ impl Scene {
     /// Whether vehicle `i` is a human driver who makes room for a ramp vehicle ahead.
     pub fn is_yielding(&self, i: usize) -> bool {
         self.is_human(i) && self.yields.get(i).copied().unwrap_or(false)
+    }
+
+    /// Whether ramp vehicle `i` gives way to every approaching target-lane vehicle
+    /// ([`Scene::gives_way`]).
+    pub fn gives_way(&self, i: usize) -> bool {
+        self.gives_way.get(i).copied().unwrap_or(false)
     }
 
     /// Number of players.

@@ -229,6 +229,7 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
         vehicles,
         humans,
         yields,
+        gives_way: Vec::new(),
         v_desired,
     }
 }
