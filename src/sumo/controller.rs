@@ -977,7 +977,7 @@ impl Controller {
                         .collect(),
                 );
                 scene.v_desired = self.v_desired;
-                if self.is_junction() {
+                if self.positions.minor_entry() {
                     let from = self.geometry.control_from;
                     let gives_way = gives_way(cars, from, |id| self.egos.contains_key(id));
                     scene.gives_way = game.members.iter().map(|&(j, _)| gives_way[j]).collect();
@@ -1280,7 +1280,8 @@ fn pass_beside_waiting(cars: &[Car], game: &Game, scene: &Scene, nb: &mut [Neigh
 }
 
 /// Which of `cars` give way to every vehicle approaching on the target lane
-/// ([`Scene::gives_way`]) on a priority junction's ramp: SUMO's own drivers (past
+/// ([`Scene::gives_way`]) on a priority junction's ramp (its minor road,
+/// [`LanePositions::minor_entry`]): SUMO's own drivers (past
 /// `control_from` and not `is_ego`: a controllable ramp vehicle is an ego from there on), who
 /// cross the stop line by SUMO's right of way, which yields to every approaching foe, and every
 /// ramp vehicle queued behind one of them on its lane. Players made room for them as

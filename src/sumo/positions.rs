@@ -42,6 +42,10 @@ pub struct LanePositions {
     road_speed: Option<f64>,
     /// A traffic light controls a link out of a ramp or target lane.
     signalised: bool,
+    /// A junction merge whose entry links are minor (SUMO's `m`, or `s`, stop first), with no
+    /// traffic light: SUMO's drivers there give way to every vehicle approaching on the target
+    /// lane.
+    minor_entry: bool,
 }
 
 /// How the ramp joins the target lane.
@@ -130,6 +134,7 @@ impl LanePositions {
             pos += place(lane, pos, 1.0)?;
         }
         let mut entry = Vec::new();
+        let mut minor_entry = false;
         match joins {
             Some((_, vias)) => {
                 for via in vias.iter().rev() {
@@ -138,7 +143,9 @@ impl LanePositions {
                 }
                 // Every junction lane out of the ramp is an entry lane, laid from the stop
                 // line on (a ramp linked to several lanes may take any of them).
+                minor_entry = true;
                 for link in links.iter().filter(|l| l.from == *accel) {
+                    minor_entry &= !link.signalised && matches!(link.state.as_str(), "m" | "s");
                     if let Some(via) = &link.via {
                         if vias.first() != Some(via) {
                             place(via, start, 1.0)?;
@@ -172,6 +179,7 @@ impl LanePositions {
             entry,
             road_speed,
             signalised,
+            minor_entry,
         })
     }
 
@@ -190,6 +198,13 @@ impl LanePositions {
     /// lane, or the one a junction merge leads into), m/s; none when the network does not give one.
     pub fn road_speed(&self) -> Option<f64> {
         self.road_speed
+    }
+
+    /// Whether the ramp enters by a minor link without a traffic light (a priority junction's
+    /// minor road): SUMO's drivers cross its stop line only once no vehicle approaches on the
+    /// target lane.
+    pub fn minor_entry(&self) -> bool {
+        self.minor_entry
     }
 
     /// Whether a traffic light controls a link out of a ramp or target lane (ramp metering, or
@@ -354,12 +369,24 @@ mod tests {
         assert_eq!(p.position(":j_0_1", 2.0), Some(100.0));
         assert!(p.is_entry(":j_0_0") && p.is_entry(":j_0_1"));
         assert!(!p.is_entry(":j_1_0") && !p.is_entry("r_0"));
+        // Its ramp enters by minor links: SUMO's drivers give way there; not on a zipper, nor
+        // behind a traffic light.
+        assert!(p.minor_entry());
+        for (from, to) in [
+            (r#"state="m""#, r#"state="Z""#),
+            (r#"state="m""#, r#"tl="j" state="o""#),
+        ] {
+            let net = JUNCTION.replace(from, to);
+            let doc = roxmltree::Document::parse(&net).unwrap();
+            let p = LanePositions::of_network(&doc, &lanes(&["r_0"]), &lanes(&["a_0", "o_0"]), 0.0).unwrap();
+            assert_eq!((p.form(), p.minor_entry()), (MergeForm::Junction, false), "{to}");
+        }
         // The acceleration-lane network is not a junction merge.
         let doc = roxmltree::Document::parse(NET).unwrap();
         let p = LanePositions::of_network(&doc, &lanes(&["r_0", "m_0"]), &lanes(&["a_0", "m_1", "b_0"]), 0.0)
             .unwrap();
         assert_eq!(p.form(), MergeForm::AccelerationLane);
-        assert!(!p.is_entry(":j2_0"));
+        assert!(!p.is_entry(":j2_0") && !p.minor_entry());
     }
 
     #[test]
