@@ -14,6 +14,8 @@
                                       (its table, and its plot as docs/results/study.png)
     scripts/results.py study-zoo DIR  the penetration study on a zoo network, from
                                       scripts/zoo_study.sh NAME DIR (docs/results/study-zoo.md)
+    scripts/results.py study-junction DIR  the same on a zoo junction merge
+                                      (docs/results/study-junction.md)
 
 Each writes docs/results/KIND.md, then docs/results/summary.md from all of them and README's
 results block. Every file's first line records the policy files and configuration it
@@ -39,15 +41,17 @@ TRAFFIC_INPUTS = ["configs/traffic.toml", "policies/traffic/*/*.json",
                   "policies/traffic/*/*.safetensors"]
 INPUTS = {"paper": PAPER_INPUTS, "traffic": TRAFFIC_INPUTS, "grid": TRAFFIC_INPUTS,
           "zoo": TRAFFIC_INPUTS, "zoo-shielded": TRAFFIC_INPUTS, "study": TRAFFIC_INPUTS,
-          "study-zoo": TRAFFIC_INPUTS}
-FOLDERS = ("grid", "zoo", "zoo-shielded", "study", "study-zoo")
+          "study-zoo": TRAFFIC_INPUTS, "study-junction": TRAFFIC_INPUTS}
+FOLDERS = ("grid", "zoo", "zoo-shielded", "study", "study-zoo", "study-junction")
+ZOO_STUDIES = ("study-zoo", "study-junction")
 TITLES = {"paper": "The paper's study (Tables II and III, claims, scenarios)",
           "traffic": "The traffic policies in their own world",
           "grid": "The traffic policies in SUMO on the bundled networks",
           "zoo": "The traffic policies in SUMO on the merge zoo",
           "zoo-shielded": "The traffic policies in SUMO on the merge zoo, SUMO's safe speed as a shield",
           "study": "The game against SUMO's drivers, by share of controllable vehicles",
-          "study-zoo": "The game against SUMO's drivers on a zoo network, by share of controllable vehicles"}
+          "study-zoo": "The game against SUMO's drivers on a zoo network, by share of controllable vehicles",
+          "study-junction": "The game against SUMO's drivers on a zoo junction merge, by share of controllable vehicles"}
 README_BEGIN = "<!-- results: docs/results/summary.md -->"
 README_END = "<!-- /results -->"
 
@@ -166,16 +170,17 @@ def acceptance(kind, folder):
 
 def study(kind, folder):
     """docs/results/KIND.md and KIND.png from a `mpgdrive study` output folder (study), or from
-    scripts/zoo_study.sh's output folder (study-zoo: its study/ and the network's name)."""
+    scripts/zoo_study.sh's output folder (study-zoo, study-junction: its study/ and the network's
+    name)."""
     network = ""
-    if kind == "study-zoo":
+    if kind in ZOO_STUDIES:
         zoo = os.path.join(folder, "zoo.txt")
         if not os.path.isfile(zoo):
             sys.exit(f"results: {zoo} does not exist (run `scripts/zoo_study.sh NAME {folder}` first)")
         name, build = open(zoo).read().strip().split(": ", 1)
         network = (f"Network: the zoo's `{name}`, built by `mpgdrive net build {build}` "
                    "(scripts/zoo_nets.sh).\n\n")
-        command = f"scripts/zoo_study.sh {name} DIR ... && scripts/results.py study-zoo DIR"
+        command = f"scripts/zoo_study.sh {name} DIR ... && scripts/results.py {kind} DIR"
         folder = os.path.join(folder, "study")
     else:
         command = "mpgdrive study --out DIR && scripts/results.py study DIR"
@@ -246,7 +251,7 @@ def summary():
     def cell(pattern, text):
         m = re.search(pattern, text, re.M)
         return m.group(1).strip() if m else "?"
-    rows = study_rows("study") + study_rows("study-zoo")
+    rows = [row for kind in ("study",) + ZOO_STUDIES for row in study_rows(kind)]
     paper_md = open(os.path.join(RESULTS, "paper.md")).read()
     t2 = paper_md.split("Statistical results: Single-agent RL")[0]
     ne_idm = cell(r"^\| Collision rate \| (.*?) \|$", t2).replace("/500", "").replace(" | ", " / ")
@@ -312,7 +317,7 @@ def main():
         paper()
     elif kind == "traffic":
         traffic()
-    elif kind in ("study", "study-zoo"):
+    elif kind in ("study",) + ZOO_STUDIES:
         study(kind, args[1])
     else:
         acceptance(kind, args[1])

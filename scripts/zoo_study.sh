@@ -2,7 +2,8 @@
 # The penetration study (`mpgdrive study`) on one network of the merge zoo, built here with
 # `mpgdrive net build` (scripts/zoo_nets.sh): writes OUT/net/ (the network), OUT/zoo.txt (its
 # name and build arguments) and OUT/study/ (the study; `scripts/results.py study-zoo OUT` puts
-# it into docs/results/study-zoo.md).
+# it into docs/results/study-zoo.md, `scripts/results.py study-junction OUT` a junction merge's
+# into docs/results/study-junction.md).
 #
 #   scripts/zoo_study.sh NAME OUT [mpgdrive study arguments...]
 #
