@@ -967,6 +967,10 @@ impl Controller {
         let mut claimed = HashSet::new();
         let mut neighbors = Vec::new();
         let mut scene_cars = Vec::new();
+        let gives = self
+            .positions
+            .minor_entry()
+            .then(|| gives_way(cars, self.geometry.control_from, |id| self.egos.contains_key(id)));
         for game in games {
             // Traffic games share one scene (every car, in the order of `cars`): built once.
             if scenes.is_empty() || !self.traffic {
@@ -977,10 +981,8 @@ impl Controller {
                         .collect(),
                 );
                 scene.v_desired = self.v_desired;
-                if self.positions.minor_entry() {
-                    let from = self.geometry.control_from;
-                    let gives_way = gives_way(cars, from, |id| self.egos.contains_key(id));
-                    scene.gives_way = game.members.iter().map(|&(j, _)| gives_way[j]).collect();
+                if let Some(gives) = &gives {
+                    scene.gives_way = game.members.iter().map(|&(j, _)| gives[j]).collect();
                 }
                 let mut nb = Vec::new();
                 find_neighbors(&scene, &mut self.order, &mut nb);
