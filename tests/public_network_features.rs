@@ -1,14 +1,17 @@
 //! What public networks hold that `mpgdrive net build`'s do not, built here with netconvert:
 //! sidewalks and bicycle lanes beside every road (city networks, `--sidewalks.guess`,
 //! `--bikelanes.guess`), a signal where the ramp joins (ramp metering, `--tls.set`), and
-//! vehicle types that keep SUMO's default `minGap` (2.5 m, where ours keep 2). A lane closed to
-//! cars is neither a ramp nor a target lane; the merge `net inspect` proposes drives in
-//! `cosim`, at a signal too, where no driven vehicle passes a red light.
+//! vehicle types that keep SUMO's default `minGap` (2.5 m, where ours keep 2), and a ramp fed
+//! by a collector road that an off-ramp of the same freeway also joins (SUMO's own
+//! `tools/game/ramp` network). A lane closed to cars is neither a ramp nor a target lane, and a
+//! freeway lane is no ramp lane; the merge `net inspect` proposes drives in `cosim`, at a signal
+//! too, where no driven vehicle passes a red light.
 #![cfg(feature = "sumo")]
 
 mod common;
 
 use common::{bin, controlled_collisions, fresh_dir};
+use mpgdrive::sumo::inspect::find_merges;
 use std::path::Path;
 use std::process::Command;
 
@@ -149,4 +152,163 @@ fn a_ramp_metered_merge_drives_the_game_as_well_as_sumo_without_passing_a_red_li
         ours <= 1.1 * sumo,
         "road time loss {ours:.2} s, SUMO's drivers {sumo:.2} s"
     );
+}
+
+/// A freeway (`f1` two lanes, `f2` one, `f3` two with the acceleration lane `f3_0`, `f4` one)
+/// whose right lane leaves by an off-ramp `off` that yields into a collector road `col`, which
+/// an on-ramp `on` feeds with the right of way; `col` splits into `exit` and `onr`, the ramp
+/// into the acceleration lane. Built with netconvert into `dir/net.net.xml`, with a sumocfg and
+/// 200 s of routes: `through` the freeway (1,000 veh/h), `onramp` from `on` (400 veh/h) and
+/// `offramp` from the freeway through `col` to `exit` (300 veh/h), all of type `car`.
+fn build_collector(dir: &Path) {
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    write(
+        "c.nod.xml",
+        r#"<nodes><node id="A" x="0" y="0"/><node id="D" x="500" y="0"/><node id="M" x="900" y="0"/>
+        <node id="E" x="1100" y="0"/><node id="B" x="1800" y="0"/><node id="J" x="600" y="-150"/>
+        <node id="R" x="300" y="-300"/><node id="K" x="750" y="-150"/><node id="X" x="900" y="-350"/></nodes>"#,
+    );
+    write(
+        "c.edg.xml",
+        r#"<edges><edge id="f1" from="A" to="D" numLanes="2" speed="30" priority="3"/>
+        <edge id="f2" from="D" to="M" numLanes="1" speed="30" priority="3"/>
+        <edge id="f3" from="M" to="E" numLanes="2" speed="30" priority="3"/>
+        <edge id="f4" from="E" to="B" numLanes="1" speed="30" priority="3"/>
+        <edge id="off" from="D" to="J" numLanes="1" speed="15" priority="1"/>
+        <edge id="on" from="R" to="J" numLanes="1" speed="15" priority="2"/>
+        <edge id="col" from="J" to="K" numLanes="1" speed="15" priority="2"/>
+        <edge id="exit" from="K" to="X" numLanes="1" speed="15" priority="1"/>
+        <edge id="onr" from="K" to="M" numLanes="1" speed="15" priority="1"/></edges>"#,
+    );
+    let links: String = [
+        ("f1", 0, "off", 0),
+        ("f1", 1, "f2", 0),
+        ("f2", 0, "f3", 1),
+        ("onr", 0, "f3", 0),
+        ("f3", 1, "f4", 0),
+        ("off", 0, "col", 0),
+        ("on", 0, "col", 0),
+        ("col", 0, "exit", 0),
+        ("col", 0, "onr", 0),
+    ]
+    .iter()
+    .map(|(a, i, b, j)| format!(r#"<connection from="{a}" to="{b}" fromLane="{i}" toLane="{j}"/>"#))
+    .collect();
+    write("c.con.xml", &format!("<connections>{links}</connections>"));
+    let out = Command::new("netconvert")
+        .current_dir(dir)
+        .args([
+            "-n",
+            "c.nod.xml",
+            "-e",
+            "c.edg.xml",
+            "-x",
+            "c.con.xml",
+            "-o",
+            "net.net.xml",
+        ])
+        .output()
+        .expect("netconvert (SUMO's network builder) is installed with SUMO");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    write(
+        "c.rou.xml",
+        r#"<routes><vType id="car" length="5" accel="2.6" decel="4.5" sigma="0.5"/>
+        <vType id="ctrl" length="5" accel="2.6" decel="4.5" sigma="0.5"/>
+        <route id="through" edges="f1 f2 f3 f4"/><route id="onramp" edges="on col onr f3 f4"/>
+        <route id="offramp" edges="f1 off col exit"/>
+        <flow id="t" type="car" route="through" begin="0" end="200" vehsPerHour="1000" departLane="best" departSpeed="max"/>
+        <flow id="r" type="car" route="onramp" begin="0" end="200" vehsPerHour="400" departSpeed="max"/>
+        <flow id="x" type="car" route="offramp" begin="0" end="200" vehsPerHour="300" departLane="0" departSpeed="max"/></routes>"#,
+    );
+    write(
+        "merge.sumocfg",
+        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/c_d1.00_s0.rou.xml"/></input>
+        <time><step-length value="0.1"/></time></configuration>"#,
+    );
+}
+
+#[test]
+fn a_ramp_fed_by_a_collector_road_holds_no_freeway_lane_and_only_its_vehicles_are_egos() {
+    let dir = fresh_dir("public-collector");
+    build_collector(&dir);
+    let merges = find_merges(&dir.join("net.net.xml")).unwrap();
+    // Where the collector road begins, the on-ramp has the right of way: the ramp is followed
+    // back along it, not along the off-ramp into the freeway's right lane.
+    let accel = merges
+        .iter()
+        .find(|m| m.ramp_lanes.last().unwrap() == "f3_0")
+        .unwrap();
+    assert_eq!(accel.ramp_lanes, ["on_0", "col_0", "onr_0", "f3_0"]);
+    assert_eq!(accel.target_lanes, ["f1_1", "f2_0", "f3_1", "f4_0"]);
+    // The off-ramp's junction merge into the collector road is one too.
+    let junction = merges
+        .iter()
+        .find(|m| m.ramp_lanes.last().unwrap() == "off_0")
+        .unwrap();
+    assert_eq!(
+        junction.target_lanes[..2],
+        ["on_0".to_owned(), "col_0".to_owned()]
+    );
+    for m in &merges {
+        assert!(m.ramp_lanes.iter().all(|l| !m.target_lanes.contains(l)), "{m:?}");
+    }
+    let out = mpgdrive_in(
+        &dir,
+        &[
+            "net",
+            "inspect",
+            "net.net.xml",
+            "--merge",
+            "1",
+            "--out",
+            "merge.toml",
+        ],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // Every ramp vehicle controllable: the on-ramp's, not the freeway's nor the off-ramp's,
+    // which pass the collector road but never reach the acceleration lane.
+    let out = mpgdrive_in(
+        &dir,
+        &[
+            "routes",
+            "--base",
+            "c.rou.xml",
+            "--controllable-share",
+            "1",
+            "--duration",
+            "200",
+            "--out",
+            "r",
+        ],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let routes = std::fs::read_to_string(dir.join("r/c_d1.00_s0.rou.xml")).unwrap();
+    let ctrl = |route: &str| {
+        routes
+            .lines()
+            .filter(|l| l.contains(&format!("route=\"{route}\"")) && l.contains("type=\"ctrl\""))
+            .count()
+    };
+    assert!(ctrl("onramp") >= 15, "{routes}");
+    assert_eq!((ctrl("through"), ctrl("offramp")), (0, 0));
+    let out = mpgdrive_in(
+        &dir,
+        &[
+            "cosim",
+            "--sumocfg",
+            "merge.sumocfg",
+            "--end",
+            "200",
+            "--controllers",
+            "mpg",
+            "--no-diagrams",
+            "--json",
+            "--out",
+            "results",
+        ],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let run: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(finished(&run[0]) >= 10, "{} egos finished", finished(&run[0]));
+    assert_eq!(controlled_collisions(&run[0]), 0);
 }

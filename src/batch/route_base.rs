@@ -1,6 +1,6 @@
 //! The parts of a base route file that `routes` generates from: its vehicle types and routes
-//! (copied verbatim), its flows and its explicit vehicles and trips, which of them start on a
-//! ramp lane, and how each generated vehicle's type is drawn from the shares.
+//! (copied verbatim), its flows and its explicit vehicles and trips, which of them drive along a
+//! ramp, and how each generated vehicle's type is drawn from the shares.
 
 use crate::batch::routes::RoutesError;
 use crate::sumo::geometry::{MergeGeometry, split_lane_id};
@@ -55,6 +55,63 @@ pub(super) struct Explicit {
 /// Attributes of a vehicle that its copies write themselves.
 const OWN_ATTRIBUTES: [&str; 3] = ["id", "type", "depart"];
 
+/// The ramps' edges, to tell the ramp's vehicles from the freeway's.
+struct RampEdges<'a> {
+    /// Per merge: the edges of its ramp lanes in driving order, each with whether it holds a
+    /// target lane too (an acceleration lane's edge).
+    merges: Vec<Vec<(&'a str, bool)>>,
+}
+
+impl<'a> RampEdges<'a> {
+    fn of(merges: &'a [MergeGeometry]) -> Self {
+        let edge = |lane: &'a String| split_lane_id(lane).map_or(lane.as_str(), |(e, _)| e);
+        let merges = merges
+            .iter()
+            .map(|g| {
+                let mut edges: Vec<(&str, bool)> = Vec::new();
+                for e in g.ramp_lanes.iter().map(edge) {
+                    if edges.last().is_none_or(|(last, _)| *last != e) {
+                        edges.push((e, g.target_lanes.iter().any(|t| edge(t) == e)));
+                    }
+                }
+                edges
+            })
+            .collect();
+        Self { merges }
+    }
+
+    /// Whether a route (its edges) is the ramp's: it reaches a merge's last ramp edge from an
+    /// edge of that ramp that holds no target lane, along the ramp's edges. A route that only
+    /// passes a ramp edge (a collector road, a ramp that leaves the freeway upstream and turns
+    /// elsewhere) or drives along the freeway past the acceleration lane is not.
+    fn of_route(&self, edges: &str) -> bool {
+        let route: Vec<&str> = edges.split_whitespace().collect();
+        self.merges.iter().any(|ramp| {
+            let Some((last, _)) = ramp.last() else {
+                return false;
+            };
+            route
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| *e == last)
+                .any(|(j, _)| {
+                    route[..=j]
+                        .iter()
+                        .rev()
+                        .map_while(|e| ramp.iter().find(|(r, _)| r == e))
+                        .any(|(_, beside_target)| !beside_target)
+                })
+        })
+    }
+
+    /// Whether a trip or flow that SUMO routes (`from`, `to`, `via`) is the ramp's: it departs
+    /// from, or passes, an edge of a ramp that holds no target lane.
+    fn of_trip(&self, from: &str, via: Option<&str>) -> bool {
+        let pure = |e: &str| self.merges.iter().flatten().any(|(r, beside)| *r == e && !beside);
+        pure(from) || via.unwrap_or_default().split_whitespace().any(pure)
+    }
+}
+
 /// The parts of a base route file the generator uses.
 pub(super) struct Base {
     /// vType, vTypeDistribution and route elements, verbatim.
@@ -74,11 +131,7 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
         message,
     };
     let doc = roxmltree::Document::parse(text).map_err(|e| bad(e.to_string()))?;
-    let ramp_edges: Vec<&str> = merges
-        .iter()
-        .flat_map(|g| &g.ramp_lanes)
-        .filter_map(|l| split_lane_id(l).map(|(e, _)| e))
-        .collect();
+    let ramp = RampEdges::of(merges);
     let controllable = controllable_types(merges);
     let mut verbatim = Vec::new();
     let mut routes = Vec::new();
@@ -112,12 +165,12 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                 verbatim.push(text[node.range()].to_owned());
                 let id =
                     attr("id").ok_or_else(|| bad(format!("a <{}> without id", node.tag_name().name())))?;
-                // A distribution's first edge is its first route's.
-                let first = std::iter::once(node)
+                // A distribution is the ramp's when its first route is.
+                let edges = std::iter::once(node)
                     .chain(node.children().filter(|n| n.has_tag_name("route")))
                     .find_map(|n| n.attribute("edges"))
                     .unwrap_or_default();
-                routes.push((id, first.split_whitespace().next().unwrap_or("").to_owned()));
+                routes.push((id, ramp.of_route(edges)));
             }
             "flow" => {
                 let num = |k: &str| -> Result<f64, RoutesError> {
@@ -130,14 +183,15 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                     }
                 };
                 let route = attr("route");
-                let first_edge = match &route {
+                let on_ramp = match &route {
                     Some(route) => routes
                         .iter()
                         .find(|(id, _)| id == route)
-                        .map(|(_, e)| e.clone())
+                        .map(|(_, r)| *r)
                         .ok_or_else(|| bad(format!("flow uses route `{route}`, not defined before it")))?,
                     None => attr("from")
                         .filter(|_| node.attribute("to").is_some())
+                        .map(|from| ramp.of_trip(&from, node.attribute("via")))
                         .ok_or_else(|| bad("flow without `route` or `from` and `to`".into()))?,
                 };
                 let (begin, end) = (num("begin")?, num("end")?);
@@ -159,7 +213,7 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                 flows.push(Flow {
                     id: attr("id").ok_or_else(|| bad("flow without id".into()))?,
                     vtype: attr("type").unwrap_or_else(|| "DEFAULT_VEHTYPE".into()),
-                    ramp: ramp_edges.contains(&first_edge.as_str()),
+                    ramp: on_ramp,
                     route,
                     begin,
                     end,
@@ -180,24 +234,18 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                     ))
                 })?;
                 let embedded = node.children().find(|n| n.has_tag_name("route"));
-                let first_edge = match (attr("route"), embedded, attr("from")) {
+                let on_ramp = match (attr("route"), embedded, attr("from")) {
                     (Some(route), _, _) => routes
                         .iter()
                         .find(|(r, _)| *r == route)
-                        .map(|(_, e)| e.clone())
+                        .map(|(_, r)| *r)
                         .ok_or_else(|| {
-                        bad(format!(
-                            "<{tag} id=\"{id}\"> uses route `{route}`, not defined before it"
-                        ))
-                    })?,
-                    (None, Some(r), _) => r
-                        .attribute("edges")
-                        .unwrap_or_default()
-                        .split_whitespace()
-                        .next()
-                        .unwrap_or("")
-                        .to_owned(),
-                    (None, None, Some(from)) => from,
+                            bad(format!(
+                                "<{tag} id=\"{id}\"> uses route `{route}`, not defined before it"
+                            ))
+                        })?,
+                    (None, Some(r), _) => ramp.of_route(r.attribute("edges").unwrap_or_default()),
+                    (None, None, Some(from)) => ramp.of_trip(&from, node.attribute("via")),
                     (None, None, None) => {
                         return Err(bad(format!("<{tag} id=\"{id}\"> without a route or `from`")));
                     }
@@ -220,7 +268,7 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                     } else {
                         inner
                     },
-                    ramp: ramp_edges.contains(&first_edge.as_str()),
+                    ramp: on_ramp,
                     id,
                 });
             }
@@ -316,4 +364,45 @@ pub(super) fn controllable_types(merges: &[MergeGeometry]) -> Vec<&str> {
         }
     }
     types
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_route_is_the_ramps_when_it_reaches_the_acceleration_lane_along_the_ramp() {
+        // The ramp `a` -> `r` -> the acceleration lane `acc_0`, beside the freeway's `f` ->
+        // `acc_1` -> `g`; `a` also leads elsewhere (`x`).
+        let merge: MergeGeometry = toml::from_str(
+            "conflict_point = 500.0\ncontrol_from = 380.0\nrelease_after = 200.0\n\
+             ramp_lanes = [\"a_0\", \"r_0\", \"acc_0\"]\ntarget_lanes = [\"f_0\", \"acc_1\", \"g_0\"]\n\
+             controllable_types = [\"ctrl\"]\nplayers = \"controllable\"\n",
+        )
+        .unwrap();
+        let merges = [merge];
+        let ramp = RampEdges::of(&merges);
+        assert!(ramp.of_route("a r acc g"));
+        assert!(ramp.of_route("y r acc g"), "from elsewhere onto the ramp");
+        assert!(
+            !ramp.of_route("a x"),
+            "passes the ramp's first edge, turns elsewhere"
+        );
+        assert!(
+            !ramp.of_route("f acc g"),
+            "the freeway past the acceleration lane"
+        );
+        assert!(
+            !ramp.of_route("acc g"),
+            "departs beside the ramp, on the freeway's edge"
+        );
+        assert!(
+            !ramp.of_route("a x acc g"),
+            "reaches the merge's edge not along the ramp"
+        );
+        // SUMO routes a trip: it is the ramp's where it departs from, or passes, a ramp edge
+        // beside no target lane.
+        assert!(ramp.of_trip("a", None) && ramp.of_trip("y", Some("x r")));
+        assert!(!ramp.of_trip("f", None) && !ramp.of_trip("acc", Some("g")));
+    }
 }

@@ -5,8 +5,9 @@
 //! becomes explicit vehicles (trips, for a flow with `from`/`to` instead of a route, which SUMO
 //! routes) with Poisson arrivals at `scale x` its rate (`vehsPerHour`, `period`, `probability`
 //! or `number`; ChaCha8, stream = flow index, so a flow's vehicles do not depend on the other
-//! flows). Ramp flows (whose route, or `from`, starts on the edge of a ramp lane of
-//! `merge.toml`) can be rescaled to carry a given share of the demand, and a flow whose type is
+//! flows). Ramp flows (whose route reaches the last ramp lane's edge along the ramp, from an
+//! edge of a ramp lane of `merge.toml` beside no target lane; or whose `from` or `via` is such
+//! an edge) can be rescaled to carry a given share of the demand, and a flow whose type is
 //! a `vTypeDistribution` that holds a controllable type draws each vehicle's type with the
 //! given controllable share, and so does a ramp flow of a plain type (one of a controllable
 //! type gives the vehicles it leaves to SUMO the file's first vType of another type; one of
@@ -132,8 +133,8 @@ pub enum RoutesError {
     Invalid(String),
 }
 
-/// How many of the flows and explicit vehicles of the base file at `base_path` start on a ramp
-/// lane of `merges`, and how many do not: which [`Streams`] it can give.
+/// How many of the flows and explicit vehicles of the base file at `base_path` drive along a
+/// ramp of `merges`, and how many do not: which [`Streams`] it can give.
 pub fn flows_by_stream(base_path: &Path, merges: &[MergeGeometry]) -> Result<(usize, usize), RoutesError> {
     let text = std::fs::read_to_string(base_path).map_err(|source| RoutesError::Io {
         path: base_path.to_path_buf(),

@@ -221,7 +221,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
         }
     }
     // The merge's own cost: each seed's ramp and freeway flows in runs of their own, when the
-    // base file has both (a ramp flow starts on a ramp lane of merge.toml).
+    // base file has both (a ramp flow drives along a ramp of merge.toml).
     let (ramp_flows, freeway_flows) = flows_by_stream(&base, &merges)?;
     let both = ramp_flows > 0 && freeway_flows > 0;
     let mut alone: Vec<(u64, Trips)> = Vec::new();
@@ -261,8 +261,8 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
     let mut md = title + &capacity_md + &penetration::markdown(&rows, apart);
     if !both {
         md += &format!(
-            "\nThe merge's own cost is not measured: {} has {ramp_flows} flows that start on a ramp \
-             lane of merge.toml and {freeway_flows} that do not (it runs the two apart).\n",
+            "\nThe merge's own cost is not measured: {} has {ramp_flows} flows that drive along a \
+             ramp of merge.toml and {freeway_flows} that do not (it runs the two apart).\n",
             base.display()
         );
     }

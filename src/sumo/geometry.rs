@@ -157,6 +157,22 @@ impl MergeGeometry {
         ] {
             check(key, !list.is_empty(), "must not be empty".into())?;
         }
+        // Each lane has one place on the road: listed once, as a ramp lane or a target lane.
+        let lanes: Vec<&String> = self.ramp_lanes.iter().chain(&self.target_lanes).collect();
+        if let Some(k) = (1..lanes.len()).find(|&k| lanes[..k].contains(&lanes[k])) {
+            let key = if k < self.ramp_lanes.len() {
+                "ramp_lanes"
+            } else {
+                "target_lanes"
+            };
+            return Err(ConfigError::Invalid {
+                key: key.into(),
+                message: format!(
+                    "lane `{}` is listed twice in ramp_lanes and target_lanes (a lane has one place on the road)",
+                    lanes[k]
+                ),
+            });
+        }
         Ok(())
     }
 
@@ -267,6 +283,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("merge[2].control_from"), "{err}");
+        for (text, key) in [
+            (
+                ONE.replace("\"main_0\", \"out_0\"", "\"main_0\", \"ramp_0\""),
+                "target_lanes",
+            ),
+            (
+                ONE.replace("[\"ramp_0\"]", "[\"ramp_0\", \"ramp_0\"]"),
+                "ramp_lanes",
+            ),
+        ] {
+            let err = load(&text).unwrap_err().to_string();
+            assert!(
+                err.contains(key) && err.contains("`ramp_0` is listed twice"),
+                "{err}"
+            );
+        }
         let err = load(&format!("[[merge]]\n{ONE}\nspeed = 3\n"))
             .unwrap_err()
             .to_string();

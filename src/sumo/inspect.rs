@@ -18,14 +18,17 @@
 //! that ends at every junction, or a bicycle lane beside a ramp, is no acceleration lane.
 //!
 //! The ramp lanes are the last ramp lane and the lanes leading into it, followed back through
-//! the connections; the target lanes are the target lane and the lanes it continues from and
-//! into. Positions are along the lanes ([`LanePositions`]), from 0 at the start of the first
+//! the connections (where two lead into one, the one with the right of way) until the ramp
+//! reaches an edge of the target lanes (a ramp that left the freeway upstream); the target
+//! lanes are the target lane and the lanes it continues from (the same way) and into (straight
+//! on first). Positions are along the lanes ([`LanePositions`]), from 0 at the start of the first
 //! target lane.
 
 use crate::sumo::LanePositions;
 use crate::sumo::geometry::split_lane_id;
 use crate::sumo::inputs::{InputError, with_network};
 use crate::sumo::positions::{Link, MergeForm, connections_of};
+use std::cmp::Reverse;
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -104,17 +107,31 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         .filter(|l| lanes.contains_key(&l.from) && lanes.contains_key(&l.to))
         .collect();
     let continues = |lane: &str| links.iter().any(|l| l.from == lane);
-    let chain = |first: &str, forward: bool| {
+    // The next lane along a chain: downstream the link straight on first, upstream the lane with
+    // the most right of way (the road that has priority where two join); else file order.
+    let next_lane = |at: &str, forward: bool| {
+        let by = |l: &&Link| (forward && !l.straight, Reverse(right_of_way(&l.state)));
+        match forward {
+            true => links
+                .iter()
+                .filter(|l| l.from == at)
+                .min_by_key(by)
+                .map(|l| l.to.clone()),
+            false => links
+                .iter()
+                .filter(|l| l.to == at)
+                .min_by_key(by)
+                .map(|l| l.from.clone()),
+        }
+    };
+    // Up to CHAIN lanes from `first`, each next lane taken while `keep(chain so far, lane)`
+    // (downstream, a road that loops back ends before a lane it already holds).
+    let chain = |first: &str, forward: bool, keep: &dyn Fn(&[String], &str) -> bool| {
         let mut out = vec![first.to_owned()];
         while out.len() < CHAIN {
             let last = out.last().expect("not empty");
-            let next = links.iter().find_map(|l| match forward {
-                true if l.from == *last => Some(l.to.clone()),
-                false if l.to == *last => Some(l.from.clone()),
-                _ => None,
-            });
-            match next {
-                Some(n) if !out.contains(&n) => out.push(n),
+            match next_lane(last, forward) {
+                Some(n) if !out.contains(&n) && keep(&out, &n) => out.push(n),
                 _ => break,
             }
         }
@@ -123,6 +140,18 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         }
         out
     };
+    let any = |_: &[String], _: &str| true;
+    // The ramp lanes back from its last lane: on the target lanes' edges only along the
+    // acceleration lane, so a ramp that left the freeway upstream (a collector road, an
+    // interchange) ends where it left it, and no freeway lane is a ramp lane.
+    let ramp_chain = |last: &str, target_lanes: &[String]| {
+        let edges: Vec<&str> = target_lanes.iter().map(|l| lanes[l].edge.as_str()).collect();
+        let on_target_edge = |l: &str| edges.contains(&lanes[l].edge.as_str());
+        chain(last, false, &|out, n| {
+            !target_lanes.iter().any(|t| t == n)
+                && (!on_target_edge(n) || out.iter().all(|l| on_target_edge(l)))
+        })
+    };
     let mut merges = Vec::new();
     // Acceleration lanes: a lane that ends beside a lane of its edge that goes on.
     for (id, lane) in &lanes {
@@ -130,9 +159,10 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         if continues(id) || !lanes.contains_key(&left) || !continues(&left) {
             continue;
         }
-        let mut target_lanes = chain(&left, false);
-        target_lanes.extend(chain(&left, true).into_iter().skip(1));
-        merges.extend(placed(doc, chain(id, false), target_lanes, &left));
+        let mut target_lanes = chain(&left, false, &any);
+        let onward = chain(&left, true, &|_, n| !target_lanes.iter().any(|t| t == n));
+        target_lanes.extend(onward.into_iter().skip(1));
+        merges.extend(placed(doc, ramp_chain(id, &target_lanes), target_lanes, &left));
     }
     // Junction merges: a lane whose links all lead into one edge, the first of them into a lane
     // that another incoming lane also leads into, and which yields to it there.
@@ -172,9 +202,10 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         if behind_signal && !(only_into_joined(id) && only_into_joined(&feeder.from)) {
             continue;
         }
-        let mut target_lanes = chain(&feeder.from, false);
-        target_lanes.extend(chain(target, true));
-        merges.extend(placed(doc, chain(id, false), target_lanes, target));
+        let mut target_lanes = chain(&feeder.from, false, &|_, n| n != target);
+        let onward = chain(target, true, &|_, n| !target_lanes.iter().any(|t| t == n));
+        target_lanes.extend(onward);
+        merges.extend(placed(doc, ramp_chain(id, &target_lanes), target_lanes, target));
     }
     merges
 }
@@ -283,7 +314,9 @@ fn keys_of(merge: &Merge) -> String {
             )
         }
         MergeForm::Junction => (
-            (merge.lane_end * 10.0).floor() / 10.0,
+            // On the lane, as written to one decimal (a lane end just below x.x0 must not
+            // round up past itself).
+            ((merge.lane_end - 1e-6) * 10.0).floor() / 10.0,
             format!(
                 "the stop line: `{last}` ends at the junction and leads into\n\
                  #                                  `{}`; ramp vehicles wait here for a safe gap and enter by driving on",
@@ -443,6 +476,25 @@ mod tests {
         assert_eq!(names, ["\"r\"", "\"r_0\""]);
         let parsed: toml::Table = text.parse().unwrap();
         assert_eq!(parsed["merge"].as_array().unwrap().len(), 2);
+    }
+
+    #[test]
+    fn a_junction_merges_proposed_stop_line_lies_on_its_last_ramp_lane() {
+        // 2037.8999999999999 times 10 rounds to 20379.0 in f64: floored naively, 2037.9 lies
+        // past the lane's end and `cosim` refuses the proposal.
+        let lane_end = 2037.8999999999999;
+        let m = Merge {
+            form: MergeForm::Junction,
+            ramp_lanes: vec!["r_0".into()],
+            target_lanes: vec!["a_0".into(), "o_0".into()],
+            target_lane: "o_0".into(),
+            lane_start: 1966.46,
+            lane_end,
+            ramp_start: 1966.46,
+        };
+        let parsed: toml::Table = keys_of(&m).parse().unwrap();
+        let x_c = parsed["conflict_point"].as_float().unwrap();
+        assert!(x_c <= lane_end && x_c > lane_end - 0.2, "{x_c}");
     }
 
     fn merges(text: &str) -> Vec<Merge> {

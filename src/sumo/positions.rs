@@ -250,6 +250,8 @@ pub(crate) struct Link {
     pub(crate) to: String,
     via: Option<String>,
     pub(crate) state: String,
+    /// The link goes straight on (SUMO's `dir="s"`, or no direction given).
+    pub(crate) straight: bool,
     /// The link is controlled by a traffic light.
     pub(crate) signalised: bool,
 }
@@ -265,6 +267,7 @@ pub(crate) fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
                 to: format!("{}_{}", n.attribute("to")?, n.attribute("toLane")?),
                 via: n.attribute("via").map(str::to_owned),
                 state: n.attribute("state").unwrap_or("M").to_owned(),
+                straight: n.attribute("dir").is_none_or(|d| d == "s"),
                 signalised: n.attribute("tl").is_some(),
             })
         })
