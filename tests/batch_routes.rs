@@ -489,3 +489,81 @@ fn explicit_vehicles_and_trips_are_kept_copied_by_the_scale_and_take_the_shares(
         "{err}"
     );
 }
+
+#[test]
+fn flows_with_a_route_in_them_poisson_periods_and_sumos_default_interval_are_generated() {
+    let (_, geometry) = i80();
+    let out = out_dir("flow-forms");
+    std::fs::create_dir_all(&out).unwrap();
+    let base = out.join("forms.rou.xml");
+    // As SUMO's documentation writes flows: a route (and parameters) in the flow, Poisson
+    // arrivals by `period="exp(r)"`, and no `begin` or `end` (0 to 24 hours).
+    std::fs::write(
+        &base,
+        r#"<routes>
+    <vType id="human"/>
+    <vType id="ctrl"/>
+    <flow id="main" type="human" period="exp(2)" departLane="best">
+        <route edges="approach main1 merge main2 departure"/>
+    </flow>
+    <flow id="onramp" type="human" end="300" vehsPerHour="720">
+        <route edges="ramp merge main2 departure"/><param key="k" value="v"/>
+    </flow>
+</routes>"#,
+    )
+    .unwrap();
+    let spec = DemandSpec {
+        scales: vec![1.0],
+        ramp_share: None,
+        controllable_shares: vec![1.0],
+        mainline_share: None,
+        seeds: vec![0],
+        duration: 600.0,
+        streams: Streams::All,
+    };
+    let m = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
+    let text = std::fs::read_to_string(out.join(&m[0].file)).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let of = |prefix: &str| -> Vec<roxmltree::Node> {
+        doc.root_element()
+            .children()
+            .filter(|n| n.has_tag_name("vehicle") && n.attribute("id").unwrap().starts_with(prefix))
+            .collect()
+    };
+    let (main, ramp) = (of("main."), of("onramp."));
+    // 2 per second over the run's 600 s, 720 veh/h over the flow's 300 s; 4 standard deviations.
+    for (n, mean) in [(main.len(), 1200.0), (ramp.len(), 60.0)] {
+        assert!(
+            (n as f64 - mean).abs() < 4.0 * f64::sqrt(mean),
+            "{n} vehicles, mean {mean}"
+        );
+    }
+    let last = |v: &[roxmltree::Node]| {
+        v.last()
+            .unwrap()
+            .attribute("depart")
+            .unwrap()
+            .parse::<f64>()
+            .unwrap()
+    };
+    assert!(last(&main) > 590.0 && last(&ramp) < 300.0);
+    // Each vehicle keeps its flow's route and parameters; the ramp's (every ramp vehicle
+    // controllable) are told from the freeway's by the route in them.
+    let route = |n: &roxmltree::Node| {
+        n.children()
+            .find(|c| c.has_tag_name("route"))
+            .unwrap()
+            .attribute("edges")
+            .unwrap()
+            .to_owned()
+    };
+    assert!(
+        main.iter()
+            .all(|n| route(n).starts_with("approach") && n.attribute("type") == Some("human"))
+    );
+    assert!(
+        ramp.iter()
+            .all(|n| route(n).starts_with("ramp") && n.attribute("type") == Some("ctrl"))
+    );
+    assert!(ramp.iter().all(|n| n.children().any(|c| c.has_tag_name("param"))));
+}

@@ -21,6 +21,8 @@ pub(super) struct Flow {
     pub(super) per_hour: f64,
     /// Other attributes (departLane, departSpeed, ...), copied to each vehicle.
     pub(super) extra: Vec<(String, String)>,
+    /// Its children (an embedded route, stops, parameters), verbatim, copied into each vehicle.
+    pub(super) inner: String,
     pub(super) ramp: bool,
 }
 
@@ -131,6 +133,13 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
         message,
     };
     let doc = roxmltree::Document::parse(text).map_err(|e| bad(e.to_string()))?;
+    // An element's children (an embedded route, stops, parameters), verbatim; none when blank.
+    let children = |node: roxmltree::Node| match (node.first_child(), node.last_child()) {
+        (Some(a), Some(b)) if !text[a.range().start..b.range().end].trim().is_empty() => {
+            text[a.range().start..b.range().end].to_owned()
+        }
+        _ => String::new(),
+    };
     let ramp = RampEdges::of(merges);
     let controllable = controllable_types(merges);
     let mut verbatim = Vec::new();
@@ -173,32 +182,41 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                 routes.push((id, ramp.of_route(edges)));
             }
             "flow" => {
-                let num = |k: &str| -> Result<f64, RoutesError> {
-                    let v = attr(k).ok_or_else(|| bad(format!("flow without `{k}`")))?;
-                    match v.parse::<f64>() {
-                        Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
-                        _ => Err(bad(format!(
-                            "flow attribute {k}=\"{v}\" is not a non-negative number"
-                        ))),
-                    }
+                let number = |k: &str, v: &str| match v.parse::<f64>() {
+                    Ok(x) if x.is_finite() && x >= 0.0 => Ok(x),
+                    _ => Err(bad(format!(
+                        "flow attribute {k}=\"{v}\" is not a non-negative number"
+                    ))),
                 };
+                let num = |k: &str| number(k, &attr(k).ok_or_else(|| bad(format!("flow without `{k}`")))?);
+                // SUMO's defaults: from the simulation's begin (0 here) for 24 hours.
+                let num_or = |k: &str, default: f64| attr(k).map_or(Ok(default), |v| number(k, &v));
                 let route = attr("route");
-                let on_ramp = match &route {
-                    Some(route) => routes
+                let embedded = node.children().find(|n| n.has_tag_name("route"));
+                let on_ramp = match (&route, embedded) {
+                    (Some(route), _) => routes
                         .iter()
                         .find(|(id, _)| id == route)
                         .map(|(_, r)| *r)
                         .ok_or_else(|| bad(format!("flow uses route `{route}`, not defined before it")))?,
-                    None => attr("from")
+                    (None, Some(r)) => ramp.of_route(r.attribute("edges").unwrap_or_default()),
+                    (None, None) => attr("from")
                         .filter(|_| node.attribute("to").is_some())
                         .map(|from| ramp.of_trip(&from, node.attribute("via")))
-                        .ok_or_else(|| bad("flow without `route` or `from` and `to`".into()))?,
+                        .ok_or_else(|| {
+                            bad("flow without a route (`route` or a <route> in it) or `from` and `to`".into())
+                        })?,
                 };
-                let (begin, end) = (num("begin")?, num("end")?);
-                // The rate: vehsPerHour, period (s between vehicles), probability (per second)
-                // or number (over begin..end).
+                let (begin, end) = (num_or("begin", 0.0)?, num_or("end", 86_400.0)?);
+                // The rate: vehsPerHour, period (s between vehicles; `exp(r)`: Poisson arrivals
+                // at r per second, as the generator draws every flow's), probability (per
+                // second) or number (over begin..end).
+                let poisson =
+                    attr("period").and_then(|p| Some(p.strip_prefix("exp(")?.strip_suffix(')')?.to_owned()));
                 let per_hour = if node.attribute("vehsPerHour").is_some() {
                     num("vehsPerHour")?
+                } else if let Some(rate) = poisson {
+                    3600.0 * number("period", &rate)?
                 } else if node.attribute("period").is_some() {
                     3600.0 / num("period")?.max(f64::MIN_POSITIVE)
                 } else if node.attribute("probability").is_some() {
@@ -223,6 +241,7 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                         .filter(|a| !RATE_ATTRIBUTES.contains(&a.name()))
                         .map(|a| (a.name().to_owned(), a.value().to_owned()))
                         .collect(),
+                    inner: children(node),
                 });
             }
             tag @ ("vehicle" | "trip") => {
@@ -250,10 +269,6 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                         return Err(bad(format!("<{tag} id=\"{id}\"> without a route or `from`")));
                     }
                 };
-                let inner = match (node.first_child(), node.last_child()) {
-                    (Some(a), Some(b)) => text[a.range().start..b.range().end].to_owned(),
-                    _ => String::new(),
-                };
                 explicit.push(Explicit {
                     tag: tag.to_owned(),
                     vtype: attr("type").unwrap_or_else(|| "DEFAULT_VEHTYPE".into()),
@@ -263,11 +278,7 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                         .filter(|a| !OWN_ATTRIBUTES.contains(&a.name()))
                         .map(|a| (a.name().to_owned(), a.value().to_owned()))
                         .collect(),
-                    inner: if inner.trim().is_empty() {
-                        String::new()
-                    } else {
-                        inner
-                    },
+                    inner: children(node),
                     ramp: on_ramp,
                     id,
                 });

@@ -3,9 +3,10 @@
 //! A base route file (for example `sumo_nets/i80_merge/i80.rou.xml`) gives the vehicle types,
 //! routes (or route distributions) and flows. For every demand scale and seed, each flow
 //! becomes explicit vehicles (trips, for a flow with `from`/`to` instead of a route, which SUMO
-//! routes) with Poisson arrivals at `scale x` its rate (`vehsPerHour`, `period`, `probability`
-//! or `number`; ChaCha8, stream = flow index, so a flow's vehicles do not depend on the other
-//! flows). Ramp flows (whose route reaches the last ramp lane's edge along the ramp, from an
+//! routes) with Poisson arrivals at `scale x` its rate (`vehsPerHour`, `period` or its Poisson
+//! form `exp(r)`, `probability` or `number`, from `begin` to `end`, SUMO's 0 and 24 hours when
+//! missing; a route and other children in the flow are copied into each vehicle; ChaCha8,
+//! stream = flow index, so a flow's vehicles do not depend on the other flows). Ramp flows (whose route reaches the last ramp lane's edge along the ramp, from an
 //! edge of a ramp lane of `merge.toml` beside no target lane; or whose `from` or `via` is such
 //! an edge) can be rescaled to carry a given share of the demand, and a flow whose type is
 //! a `vTypeDistribution` that holds a controllable type draws each vehicle's type with the
@@ -151,6 +152,14 @@ fn check_share(name: &str, x: Option<f64>) -> Result<(), RoutesError> {
             Err(RoutesError::Invalid(format!("{name} {v} must lie in [0, 1]")))
         }
         _ => Ok(()),
+    }
+}
+
+/// A vehicle element: its opening tag `head` (without the closing `>`) and its children.
+fn element(head: String, tag: &str, inner: &str) -> String {
+    match inner.is_empty() {
+        true => head + "/>",
+        false => format!("{head}>{inner}</{tag}>"),
     }
 }
 
@@ -327,19 +336,19 @@ pub fn generate(
                         .iter()
                         .map(|(a, v)| format!(" {a}=\"{}\"", xml_escape(v)))
                         .collect();
-                    // A flow with from/to gives trips (its from/to/via are in `extra`).
+                    // A flow with from/to gives trips (its from/to/via are in `extra`), one
+                    // with a route (named, or in it) vehicles; each keeps the flow's children.
                     let (tag, route) = match &flow.route {
                         Some(r) => ("vehicle", format!(" route=\"{}\"", xml_escape(r))),
+                        None if flow.inner.contains("<route") => ("vehicle", String::new()),
                         None => ("trip", String::new()),
                     };
-                    vehicles.push((
-                        t,
-                        format!(
-                            "    <{tag} id=\"{}.{n}\" type=\"{}\"{route} depart=\"{t:.2}\"{extra}/>",
-                            xml_escape(&flow.id),
-                            xml_escape(&vtype),
-                        ),
-                    ));
+                    let head = format!(
+                        "    <{tag} id=\"{}.{n}\" type=\"{}\"{route} depart=\"{t:.2}\"{extra}",
+                        xml_escape(&flow.id),
+                        xml_escape(&vtype),
+                    );
+                    vehicles.push((t, element(head, tag, &flow.inner)));
                     n += 1;
                 }
             }
@@ -372,11 +381,7 @@ pub fn generate(
                         xml_escape(&vtype),
                         xml_escape(&v.depart.0)
                     );
-                    let element = match v.inner.is_empty() {
-                        true => format!("{head}/>"),
-                        false => format!("{head}>{}</{}>", v.inner, v.tag),
-                    };
-                    vehicles.push((v.depart.1, element));
+                    vehicles.push((v.depart.1, element(head, &v.tag, &v.inner)));
                 }
             }
             vehicles.sort_by(|a, b| a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1)));
