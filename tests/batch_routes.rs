@@ -566,4 +566,9 @@ fn flows_with_a_route_in_them_poisson_periods_and_sumos_default_interval_are_gen
             .all(|n| route(n).starts_with("ramp") && n.attribute("type") == Some("ctrl"))
     );
     assert!(ramp.iter().all(|n| n.children().any(|c| c.has_tag_name("param"))));
+    // A rate that is not a number is named as written.
+    let text = std::fs::read_to_string(&base).unwrap();
+    std::fs::write(&base, text.replace("exp(2)", "exp(fast)")).unwrap();
+    let err = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap_err();
+    assert!(err.to_string().contains("period=\"exp(fast)\""), "{err}");
 }

@@ -216,7 +216,12 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                 let per_hour = if node.attribute("vehsPerHour").is_some() {
                     num("vehsPerHour")?
                 } else if let Some(rate) = poisson {
-                    3600.0 * number("period", &rate)?
+                    3600.0
+                        * number("period", &rate).map_err(|_| {
+                            bad(format!(
+                                "flow attribute period=\"exp({rate})\": the rate is not a non-negative number"
+                            ))
+                        })?
                 } else if node.attribute("period").is_some() {
                     3600.0 / num("period")?.max(f64::MIN_POSITIVE)
                 } else if node.attribute("probability").is_some() {
