@@ -180,6 +180,8 @@ struct Car {
     /// A ramp car held by its red light before the merge: in no game until the light turns
     /// green (SUMO drives it meanwhile, and stops it there).
     held_at_red: bool,
+    /// The speed limit of the lane it is on (m/s), when the network gives one.
+    speed_limit: Option<f64>,
 }
 
 /// Whether a SUMO signal state stops traffic: red, or red-yellow before green.
@@ -535,6 +537,7 @@ impl Controller {
                     sumo.set_color(&c.id, if ego { EGO_COLOUR } else { PLAYER_COLOUR })?;
                 }
             }
+            let accel = self.within_speed_limit(c, accel);
             // SUMO's next speed is the model's current one (module docs: one-step lag). A
             // vehicle braked to a stop can land a rounding error below zero (v + (-v / dt) dt),
             // and a negative speed tells SUMO to drive the vehicle itself again.
@@ -809,6 +812,7 @@ impl Controller {
             cars.push(Car {
                 signal,
                 held_at_red,
+                speed_limit: self.positions.speed_limit(&on),
                 on_ramp: ramp && x < in_lane_from,
                 ramp_lane: ramp.then_some(lane),
                 path_leader,
@@ -819,6 +823,17 @@ impl Controller {
             });
         }
         Ok(cars)
+    }
+
+    /// `accel` within the speed limit of `c`'s lane, a rule of the road for every driver (SUMO's
+    /// drive to it too): no speeding up past it, and above it (on entering a slower lane) no
+    /// more braking towards it than `sim.b_safe`. The policies' world has one desired speed
+    /// and a ramp as fast as the road; a network's ramp is often slower than the freeway.
+    fn within_speed_limit(&self, c: &Car, accel: f64) -> f64 {
+        match c.speed_limit {
+            Some(limit) => accel.min(((limit - c.v) / self.rules.dt).max(-self.rules.gate.b_safe)),
+            None => accel,
+        }
     }
 
     /// Picks up new egos (choosing their players once, as the initial state of an internal
@@ -1393,6 +1408,7 @@ mod tests {
             path_leader: None,
             signal: None,
             held_at_red: false,
+            speed_limit: None,
         }
     }
 
@@ -1507,6 +1523,29 @@ mod tests {
             None,
             ControlModes::SAFE,
         )
+    }
+
+    #[test]
+    fn a_driven_car_keeps_to_its_lanes_speed_limit_and_slows_to_a_lower_one_at_b_safe() {
+        let c = paper_controller();
+        let (dt, b_safe) = (c.rules.dt, c.rules.gate.b_safe);
+        let on = |v: f64, limit: Option<f64>| Car {
+            speed_limit: limit,
+            ..car("e", 100.0, v, true)
+        };
+        // 0.5 m/s below a 20 m/s limit: at most what reaches it in one step.
+        assert!((c.within_speed_limit(&on(19.5, Some(20.0)), 9.0) - 0.5 / dt).abs() < 1e-9);
+        // At the limit: no speeding up; braking stays the policy's.
+        assert_eq!(c.within_speed_limit(&on(20.0, Some(20.0)), 2.0), 0.0);
+        assert_eq!(c.within_speed_limit(&on(20.0, Some(20.0)), -3.0), -3.0);
+        // Above a lower limit (a slower lane entered): towards it at b_safe, not at once.
+        assert_eq!(c.within_speed_limit(&on(28.0, Some(20.0)), 1.0), -b_safe);
+        assert_eq!(
+            c.within_speed_limit(&on(20.1, Some(20.0)), 1.0),
+            (20.0 - 20.1) / dt
+        );
+        // A lane without a limit in the network: the policy's action.
+        assert_eq!(c.within_speed_limit(&on(50.0, None), 1.0), 1.0);
     }
 
     #[test]

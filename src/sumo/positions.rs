@@ -66,6 +66,8 @@ struct Placed {
     start: f64,
     scale: f64,
     length: f64,
+    /// Speed limit (m/s), when the network gives one.
+    speed: Option<f64>,
 }
 
 /// How many junction lanes a connection may pass through.
@@ -120,7 +122,16 @@ impl LanePositions {
         let mut lanes = HashMap::new();
         let mut place = |lane: &str, start: f64, scale: f64| -> Result<f64, String> {
             let length = length(lane)?;
-            lanes.insert(lane.to_owned(), Placed { start, scale, length });
+            let speed = net.get(lane).and_then(|l| l.speed);
+            lanes.insert(
+                lane.to_owned(),
+                Placed {
+                    start,
+                    scale,
+                    length,
+                    speed,
+                },
+            );
             Ok(length)
         };
         let mut pos = target_start;
@@ -223,6 +234,12 @@ impl LanePositions {
         self.lanes.get(lane).map(|p| p.start + p.scale * lane_pos)
     }
 
+    /// The speed limit of `lane` (m/s; a ramp, target or junction lane of the merge), when the
+    /// network gives one.
+    pub fn speed_limit(&self, lane: &str) -> Option<f64> {
+        self.lanes.get(lane).and_then(|p| p.speed)
+    }
+
     /// The positions `lane` covers, from its start to its end (m).
     pub fn span(&self, lane: &str) -> Option<(f64, f64)> {
         self.lanes
@@ -301,15 +318,15 @@ fn via_lanes(links: &[Link], from: &str, to: &str, key: &str) -> Result<Vec<Stri
 mod tests {
     use super::*;
 
-    /// A ramp `r_0` (50 m) into acceleration lane `m_0` (40 m, beside `m_1`) through a 5 m
+    /// A ramp `r_0` (50 m, 16 m/s) into acceleration lane `m_0` (40 m, 25 m/s, beside `m_1`) through a 5 m
     /// junction lane, and target lanes `a_0` (100 m) -> `m_1` (40 m) -> `b_0` (60 m), the
     /// first through a 3 m junction lane.
     const NET: &str = r#"<net>
         <edge id=":j1" function="internal"><lane id=":j1_0" index="0" length="3.00"/></edge>
         <edge id=":j2" function="internal"><lane id=":j2_0" index="0" length="5.00"/></edge>
         <edge id="a"><lane id="a_0" index="0" length="100.00"/></edge>
-        <edge id="r"><lane id="r_0" index="0" length="50.00"/></edge>
-        <edge id="m"><lane id="m_0" index="0" length="40.00"/><lane id="m_1" index="1" length="40.00"/></edge>
+        <edge id="r"><lane id="r_0" index="0" speed="16.00" length="50.00"/></edge>
+        <edge id="m"><lane id="m_0" index="0" speed="25.00" length="40.00"/><lane id="m_1" index="1" length="40.00"/></edge>
         <edge id="b"><lane id="b_0" index="0" length="60.00"/></edge>
         <connection from="a" to="m" fromLane="0" toLane="1" via=":j1_0"/>
         <connection from=":j1" to="m" fromLane="0" toLane="1"/>
@@ -344,6 +361,11 @@ mod tests {
         assert_eq!(p.span("r_0"), Some((38.0, 88.0)));
         assert_eq!(p.span("m_0"), Some((93.0, 133.0)));
         assert_eq!(p.position("elsewhere_0", 1.0), None);
+        // Speed limits as the network gives them (the ramp slower than the acceleration lane).
+        assert_eq!(
+            (p.speed_limit("r_0"), p.speed_limit("m_0"), p.speed_limit("m_1")),
+            (Some(16.0), Some(25.0), None)
+        );
     }
 
     /// A junction merge: target `a_0` (100 m) -> `:j_1_0` (6 m) -> `o_0` (50 m); the ramp
