@@ -60,13 +60,19 @@ fn mpgdrive_in(dir: &Path, args: &[&str]) -> std::process::Output {
 }
 
 /// `mpgdrive net inspect` in `dir`, writing `merge.toml` (its `players` set to `players`),
-/// then `cosim` of `controllers` for 200 s with `args`: the runs.
+/// then [`drive`].
 fn inspect_and_drive(dir: &Path, players: &str, controllers: &str, args: &[&str]) -> Vec<serde_json::Value> {
     let out = mpgdrive_in(dir, &["net", "inspect", "net.net.xml", "--out", "merge.toml"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let toml = std::fs::read_to_string(dir.join("merge.toml")).unwrap();
     let toml = toml.replace(r#"players = "controllable""#, &format!("players = \"{players}\""));
     std::fs::write(dir.join("merge.toml"), toml).unwrap();
+    drive(dir, controllers, args)
+}
+
+/// `cosim` of `controllers` in `dir` (`merge.sumocfg`, `merge.toml`) for 200 s with `args`:
+/// the runs.
+fn drive(dir: &Path, controllers: &str, args: &[&str]) -> Vec<serde_json::Value> {
     let cosim = [
         "cosim",
         "--sumocfg",
@@ -291,24 +297,7 @@ fn a_ramp_fed_by_a_collector_road_holds_no_freeway_lane_and_only_its_vehicles_ar
     };
     assert!(ctrl("onramp") >= 15, "{routes}");
     assert_eq!((ctrl("through"), ctrl("offramp")), (0, 0));
-    let out = mpgdrive_in(
-        &dir,
-        &[
-            "cosim",
-            "--sumocfg",
-            "merge.sumocfg",
-            "--end",
-            "200",
-            "--controllers",
-            "mpg",
-            "--no-diagrams",
-            "--json",
-            "--out",
-            "results",
-        ],
-    );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let run: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let run = drive(&dir, "mpg", &[]);
     assert!(finished(&run[0]) >= 10, "{} egos finished", finished(&run[0]));
     assert_eq!(controlled_collisions(&run[0]), 0);
 }

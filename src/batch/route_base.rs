@@ -398,24 +398,16 @@ mod tests {
         .unwrap();
         let merges = [merge];
         let ramp = RampEdges::of(&merges);
-        assert!(ramp.of_route("a r acc g"));
-        assert!(ramp.of_route("y r acc g"), "from elsewhere onto the ramp");
-        assert!(
-            !ramp.of_route("a x"),
-            "passes the ramp's first edge, turns elsewhere"
-        );
-        assert!(
-            !ramp.of_route("f acc g"),
-            "the freeway past the acceleration lane"
-        );
-        assert!(
-            !ramp.of_route("acc g"),
-            "departs beside the ramp, on the freeway's edge"
-        );
-        assert!(
-            !ramp.of_route("a x acc g"),
-            "reaches the merge's edge not along the ramp"
-        );
+        for (route, on_ramp, why) in [
+            ("a r acc g", true, "along the ramp"),
+            ("y r acc g", true, "from elsewhere onto the ramp"),
+            ("a x", false, "passes the ramp's first edge, turns elsewhere"),
+            ("f acc g", false, "the freeway past the acceleration lane"),
+            ("acc g", false, "departs beside the ramp, on the freeway's edge"),
+            ("a x acc g", false, "reaches the merge's edge not along the ramp"),
+        ] {
+            assert_eq!(ramp.of_route(route), on_ramp, "{route}: {why}");
+        }
         // SUMO routes a trip: it is the ramp's where it departs from, or passes, a ramp edge
         // beside no target lane.
         assert!(ramp.of_trip("a", None) && ramp.of_trip("y", Some("x r")));
