@@ -314,9 +314,7 @@ fn keys_of(merge: &Merge) -> String {
             )
         }
         MergeForm::Junction => (
-            // On the lane, as written to one decimal (a lane end just below x.x0 must not
-            // round up past itself).
-            ((merge.lane_end - 1e-6) * 10.0).floor() / 10.0,
+            on_lane_to_a_decimal(merge.lane_end),
             format!(
                 "the stop line: `{last}` ends at the junction and leads into\n\
                  #                                  `{}`; ramp vehicles wait here for a safe gap and enter by driving on",
@@ -348,6 +346,16 @@ fn keys_of(merge: &Merge) -> String {
          controllable_types = [\"ctrl\"]   # the vehicle types of your route files that mpgdrive may drive: edit\n\
          players = \"controllable\"         # or \"all\": the MPG policy also drives every player of an ego's game\n"
     )
+}
+
+/// The largest position at one decimal, as a proposal writes it, that is not past `end`: a
+/// lane end just below a tenth (2037.8999999999999, say) must not round up past itself.
+fn on_lane_to_a_decimal(end: f64) -> f64 {
+    let mut tenths = (end * 10.0).floor();
+    if tenths / 10.0 > end {
+        tenths -= 1.0;
+    }
+    tenths / 10.0
 }
 
 /// A commented `merge.toml` for every merge of `merges` in the network `net`: the single form
@@ -494,7 +502,14 @@ mod tests {
         };
         let parsed: toml::Table = keys_of(&m).parse().unwrap();
         let x_c = parsed["conflict_point"].as_float().unwrap();
-        assert!(x_c <= lane_end && x_c > lane_end - 0.2, "{x_c}");
+        assert_eq!(x_c, 2037.8);
+        // A lane end on a tenth is the stop line itself.
+        let x_c = |end: f64| {
+            format!("{:.1}", on_lane_to_a_decimal(end))
+                .parse::<f64>()
+                .unwrap()
+        };
+        assert_eq!((x_c(496.0), x_c(496.04), x_c(0.3)), (496.0, 496.0, 0.3));
     }
 
     fn merges(text: &str) -> Vec<Merge> {
