@@ -6,9 +6,10 @@
 //! routes) with Poisson arrivals at `scale x` its rate (`vehsPerHour`, `period` or its Poisson
 //! form `exp(r)`, `probability` or `number`, from `begin` to `end`, SUMO's 0 and 24 hours when
 //! missing; a route and other children in the flow are copied into each vehicle; ChaCha8,
-//! stream = flow index, so a flow's vehicles do not depend on the other flows). Ramp flows (whose route reaches the last ramp lane's edge along the ramp, from an
-//! edge of a ramp lane of `merge.toml` beside no target lane; or whose `from` or `via` is such
-//! an edge) can be rescaled to carry a given share of the demand, and a flow whose type is
+//! stream = flow index, so a flow's vehicles do not depend on the other flows). Ramp flows
+//! (whose route reaches the last ramp lane's edge along the ramp, from an edge of a ramp lane
+//! of `merge.toml` beside no target lane; or whose `from` or `via` is such an edge) can be
+//! rescaled to carry a given share of the demand, and a flow whose type is
 //! a `vTypeDistribution` that holds a controllable type draws each vehicle's type with the
 //! given controllable share, and so does a ramp flow of a plain type (one of a controllable
 //! type gives the vehicles it leaves to SUMO the file's first vType of another type; one of
