@@ -284,6 +284,46 @@ fn at_a_junction_merge_players_drive_on_past_sumos_ramp_drivers_who_give_way() {
 }
 
 #[test]
+fn egos_keep_to_the_ramps_speed_limit_where_the_freeway_is_faster() {
+    // A 20 m/s ramp into a 36 m/s freeway at a junction, light traffic: the policy's desired
+    // speed is the freeway's, and with SUMO's speed mode 0 nothing but `cosim` holds its egos
+    // to the ramp's limit (before, they drove 26-30 m/s from 100 m before the stop line).
+    let root = Outside::new("speed-limit");
+    let dir = root.0.join("net");
+    build(
+        &dir,
+        "--form junction --speed 36 --lane-flow 300 --ramp-flow 300 --duration 200",
+    );
+    let runs = cosim_in(
+        &dir,
+        &root.0.join("cache"),
+        &["--controllers", "mpg", "--end", "200"],
+    );
+    let run = &runs[0];
+    let finished = run["egos"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["finished"] == true)
+        .count();
+    assert!(finished >= 10, "{finished} egos finished");
+    // Every band before the stop line is on the ramp. An ego picked up above the limit (SUMO
+    // drove it until then, at its speed factor, 1 +- 0.1) slows to it at b_safe: half a m/s.
+    let bands = run["speed_by_position"].as_array().unwrap();
+    let ramp: Vec<f64> = bands
+        .iter()
+        .filter(|b| b["to"].as_f64().unwrap() <= 0.0 && b["steps"].as_u64().unwrap() > 0)
+        .map(|b| b["mean_speed"].as_f64().unwrap())
+        .collect();
+    assert!(ramp.len() >= 5, "{bands:?}");
+    assert!(
+        ramp.iter().all(|&v| v <= 20.5),
+        "ego speeds on the ramp: {ramp:?}"
+    );
+    assert_eq!(controlled_collisions(run), 0);
+}
+
+#[test]
 fn at_a_junction_merge_a_ramp_vehicle_enters_by_the_gap_at_the_stop_line() {
     // The zoo's junction-v30-curved, the game, demand 0.8, SUMO seed 2: with the acceleration
     // lane's check of a lane change now, an ego 25 m before the stop line at 24 m/s was braked
