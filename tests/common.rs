@@ -66,6 +66,16 @@ pub fn controlled_collisions(run: &serde_json::Value) -> usize {
         .count()
 }
 
+/// The egos of a cosim run (`cosim.json`) that finished.
+pub fn finished_egos(run: &serde_json::Value) -> usize {
+    run["egos"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["finished"] == true)
+        .count()
+}
+
 /// A fresh, empty directory for a test under Cargo's scratch directory (target/tmp), so a
 /// run leaves one set, which the next run replaces and `cargo clean` removes.
 pub fn fresh_dir(name: &str) -> std::path::PathBuf {

@@ -10,7 +10,7 @@
 
 mod common;
 
-use common::{bin, controlled_collisions, fresh_dir};
+use common::{bin, controlled_collisions, finished_egos, fresh_dir};
 use mpgdrive::sumo::inspect::find_merges;
 use std::path::Path;
 use std::process::Command;
@@ -91,16 +91,6 @@ fn drive(dir: &Path, controllers: &str, args: &[&str]) -> Vec<serde_json::Value>
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
-/// The egos of a run that finished.
-fn finished(run: &serde_json::Value) -> usize {
-    run["egos"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["finished"] == true)
-        .count()
-}
-
 /// The mean time loss (s) of the road's vehicles (flow `f`) that finished, in a tripinfo file.
 fn road_time_loss(tripinfo: &Path) -> f64 {
     let text = std::fs::read_to_string(tripinfo).unwrap();
@@ -130,7 +120,7 @@ fn sidewalks_and_bicycle_lanes_are_no_merges_and_the_car_lanes_merge_drives() {
         toml.contains(r#"target_lanes = ["fw_in_1", "fw_out_1"]"#),
         "{toml}"
     );
-    assert!(finished(run) >= 10, "{} egos finished", finished(run));
+    assert!(finished_egos(run) >= 10, "{} egos finished", finished_egos(run));
     assert_eq!(controlled_collisions(run), 0);
 }
 
@@ -145,7 +135,7 @@ fn a_ramp_metered_merge_drives_the_game_as_well_as_sumo_without_passing_a_red_li
     let toml = std::fs::read_to_string(dir.join("merge.toml")).unwrap();
     assert!(toml.contains(r#"ramp_lanes = ["ramp_0"]"#), "{toml}");
     let game = &runs[0];
-    assert!(finished(game) >= 10, "{} egos finished", finished(game));
+    assert!(finished_egos(game) >= 10, "{} egos finished", finished_egos(game));
     assert_eq!(controlled_collisions(game), 0);
     assert_eq!(game["red_light_passes"], 0);
     // The light gives each road its turn: players that made room for egos held at theirs
@@ -298,6 +288,10 @@ fn a_ramp_fed_by_a_collector_road_holds_no_freeway_lane_and_only_its_vehicles_ar
     assert!(ctrl("onramp") >= 15, "{routes}");
     assert_eq!((ctrl("through"), ctrl("offramp")), (0, 0));
     let run = drive(&dir, "mpg", &[]);
-    assert!(finished(&run[0]) >= 10, "{} egos finished", finished(&run[0]));
+    assert!(
+        finished_egos(&run[0]) >= 10,
+        "{} egos finished",
+        finished_egos(&run[0])
+    );
     assert_eq!(controlled_collisions(&run[0]), 0);
 }

@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::{bin, controlled_collisions};
+use common::{bin, controlled_collisions, finished_egos};
 use mpgdrive::sumo::inspect::find_merges;
 use mpgdrive::sumo::positions::MergeForm;
 use std::path::{Path, PathBuf};
@@ -300,12 +300,7 @@ fn egos_keep_to_the_ramps_speed_limit_where_the_freeway_is_faster() {
         &["--controllers", "mpg", "--end", "200"],
     );
     let run = &runs[0];
-    let finished = run["egos"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|e| e["finished"] == true)
-        .count();
+    let finished = finished_egos(run);
     assert!(finished >= 10, "{finished} egos finished");
     // Every band before the stop line is on the ramp. An ego picked up above the limit (SUMO
     // drove it until then, at its speed factor, 1 +- 0.1) slows to it at b_safe: half a m/s.
