@@ -3,9 +3,10 @@
 //! `--bikelanes.guess`), a signal where the ramp joins (ramp metering, `--tls.set`), and
 //! vehicle types that keep SUMO's default `minGap` (2.5 m, where ours keep 2), and a ramp fed
 //! by a collector road that an off-ramp of the same freeway also joins (SUMO's own
-//! `tools/game/ramp` network). A lane closed to cars is neither a ramp nor a target lane, and a
-//! freeway lane is no ramp lane; the merge `net inspect` proposes drives in `cosim`, at a signal
-//! too, where no driven vehicle passes a red light.
+//! `tools/game/ramp` network), and an on-ramp that joins on the freeway's inner side. A lane
+//! closed to cars is neither a ramp nor a target lane, and a freeway lane is no ramp lane; the
+//! merge `net inspect` proposes drives in `cosim`, at a signal too, where no driven vehicle
+//! passes a red light.
 #![cfg(feature = "sumo")]
 
 mod common;
@@ -294,4 +295,81 @@ fn a_ramp_fed_by_a_collector_road_holds_no_freeway_lane_and_only_its_vehicles_ar
         finished_egos(&run[0])
     );
     assert_eq!(controlled_collisions(&run[0]), 0);
+}
+
+/// A two-lane freeway at 30 m/s (`in`, `acc` with three lanes, `out`) that a ramp (`ramp`, 20
+/// m/s) joins on its inner side: the ramp leads into `acc_2`, which ends beside `acc_1`. Built
+/// with netconvert and explicit connections into `dir/net.net.xml`, with a sumocfg and 200 s of
+/// flows (2,000 veh/h on the freeway, 400 on the ramp, of type `ctrl`).
+fn build_inner(dir: &Path) {
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    write(
+        "i.nod.xml",
+        r#"<nodes><node id="A" x="0" y="0"/><node id="B" x="600" y="0"/><node id="C" x="800" y="0"/>
+        <node id="D" x="1400" y="0"/><node id="R" x="150" y="160"/></nodes>"#,
+    );
+    write(
+        "i.edg.xml",
+        r#"<edges><edge id="in" from="A" to="B" numLanes="2" speed="30"/>
+        <edge id="acc" from="B" to="C" numLanes="3" speed="30"/>
+        <edge id="out" from="C" to="D" numLanes="2" speed="30"/>
+        <edge id="ramp" from="R" to="B" numLanes="1" speed="20"/></edges>"#,
+    );
+    let links: String = [
+        ("in", 0, "acc", 0),
+        ("in", 1, "acc", 1),
+        ("ramp", 0, "acc", 2),
+        ("acc", 0, "out", 0),
+        ("acc", 1, "out", 1),
+    ]
+    .iter()
+    .map(|(a, i, b, j)| format!(r#"<connection from="{a}" to="{b}" fromLane="{i}" toLane="{j}"/>"#))
+    .collect();
+    write("i.con.xml", &format!("<connections>{links}</connections>"));
+    let out = Command::new("netconvert")
+        .current_dir(dir)
+        .args([
+            "-n",
+            "i.nod.xml",
+            "-e",
+            "i.edg.xml",
+            "-x",
+            "i.con.xml",
+            "-o",
+            "net.net.xml",
+        ])
+        .output()
+        .expect("netconvert (SUMO's network builder) is installed with SUMO");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    write(
+        "i.rou.xml",
+        r#"<routes><vType id="car" length="5" accel="2.6" decel="4.5" sigma="0.5"/>
+        <vType id="ctrl" length="5" accel="2.6" decel="4.5" sigma="0.5"/>
+        <flow id="f" type="car" from="in" to="out" begin="0" end="200" vehsPerHour="2000" departLane="best" departSpeed="max"/>
+        <flow id="r" type="ctrl" from="ramp" to="out" begin="0" end="200" vehsPerHour="400" departSpeed="max"/></routes>"#,
+    );
+    write(
+        "merge.sumocfg",
+        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="i.rou.xml"/></input>
+        <time><step-length value="0.1"/></time></configuration>"#,
+    );
+}
+
+#[test]
+fn a_ramp_that_joins_on_the_inner_side_merges_into_the_lane_to_its_right() {
+    let dir = fresh_dir("public-inner-ramp");
+    build_inner(&dir);
+    let merges = find_merges(&dir.join("net.net.xml")).unwrap();
+    assert_eq!(merges.len(), 1, "{merges:?}");
+    assert_eq!(merges[0].ramp_lanes, ["ramp_0", "acc_2"]);
+    assert_eq!(merges[0].target_lanes, ["in_1", "acc_1", "out_1"]);
+    // With lane-change mode 0 SUMO changes no driven ramp vehicle's lane by itself: an ego that
+    // finishes was moved to `acc_1` by the controller, the lane to the right of its own.
+    let runs = inspect_and_drive(&dir, "controllable", "mpg", &["--lane-change-mode", "0"]);
+    assert!(
+        finished_egos(&runs[0]) >= 10,
+        "{} egos finished",
+        finished_egos(&runs[0])
+    );
+    assert_eq!(controlled_collisions(&runs[0]), 0);
 }

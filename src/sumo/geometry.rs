@@ -210,12 +210,24 @@ impl MergeGeometry {
         self.target_lanes.iter().any(|l| l == lane)
     }
 
-    /// The target lane next to ramp lane `lane` on the same edge (index + 1), if it is one.
+    /// The target lane next to ramp lane `lane` on the same edge, and its index
+    /// ([`lane_beside`]), if there is one.
     pub fn merge_lane(&self, lane: &str) -> Option<(String, i32)> {
-        let (edge, index) = split_lane_id(lane)?;
-        let next = format!("{edge}_{}", index + 1);
-        self.is_target(&next).then_some((next, index + 1))
+        lane_beside(lane, |l| self.is_target(l))
     }
+}
+
+/// The lane of `lane`'s edge beside it for which `is_target` holds, and its index: the one to
+/// its left (index + 1) first, else the one to its right (index - 1). An acceleration lane is
+/// mostly the outer lane, but a ramp can join on the inner side (a left-hand on-ramp in
+/// right-hand traffic, or an inner lane that ends).
+pub fn lane_beside(lane: &str, is_target: impl Fn(&str) -> bool) -> Option<(String, i32)> {
+    let (edge, index) = split_lane_id(lane)?;
+    [index + 1, index - 1]
+        .into_iter()
+        .filter(|&i| i >= 0)
+        .map(|i| (format!("{edge}_{i}"), i))
+        .find(|(l, _)| is_target(l))
 }
 
 /// Splits a SUMO lane id `<edge>_<index>` into its edge and index.
@@ -241,6 +253,16 @@ mod tests {
         let loaded = MergeGeometry::load_all(&path);
         std::fs::remove_dir_all(dir).unwrap();
         loaded
+    }
+
+    #[test]
+    fn the_lane_beside_is_the_left_one_first_then_the_right_one() {
+        let of = |lane: &str, targets: &[&str]| lane_beside(lane, |l| targets.contains(&l));
+        assert_eq!(of("acc_0", &["acc_1"]), Some(("acc_1".into(), 1)));
+        assert_eq!(of("acc_2", &["acc_1"]), Some(("acc_1".into(), 1)));
+        assert_eq!(of("m_1", &["m_0", "m_2"]), Some(("m_2".into(), 2)));
+        assert_eq!(of("acc_0", &["acc_2", "in_1"]), None);
+        assert_eq!(of("no-index", &["no-index_1"]), None);
     }
 
     #[test]

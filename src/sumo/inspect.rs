@@ -2,7 +2,8 @@
 //!
 //! A merge is either
 //! - an **acceleration lane**: a lane that ends (no connection leaves it) beside a lane of the
-//!   same edge that goes on, the target lane (this covers a lane drop whose right lane ends);
+//!   same edge that goes on, the target lane: the lane to its left, else the one to its right
+//!   (this covers a lane drop whose outer lane ends, and a ramp that joins on the inner side);
 //! - a **junction merge**: a lane whose connections all lead into one edge, the first (lowest
 //!   index) into a lane that another incoming lane also leads into, and which yields to that
 //!   lane there (its link is minor where the other's is major; with equal links, a zipper or a
@@ -25,7 +26,7 @@
 //! target lane.
 
 use crate::sumo::LanePositions;
-use crate::sumo::geometry::split_lane_id;
+use crate::sumo::geometry::{lane_beside, split_lane_id};
 use crate::sumo::inputs::{InputError, with_network};
 use crate::sumo::positions::{Link, MergeForm, connections_of};
 use std::cmp::Reverse;
@@ -153,16 +154,19 @@ fn merges_of(doc: &roxmltree::Document) -> Vec<Merge> {
         })
     };
     let mut merges = Vec::new();
-    // Acceleration lanes: a lane that ends beside a lane of its edge that goes on.
-    for (id, lane) in &lanes {
-        let left = format!("{}_{}", lane.edge, lane.index + 1);
-        if continues(id) || !lanes.contains_key(&left) || !continues(&left) {
+    // Acceleration lanes: a lane that ends beside a lane of its edge that goes on (the lane to
+    // its left first, else the one to its right: a ramp that joins on the inner side).
+    for id in lanes.keys() {
+        if continues(id) {
             continue;
         }
-        let mut target_lanes = chain(&left, false, &any);
-        let onward = chain(&left, true, &|_, n| !target_lanes.iter().any(|t| t == n));
+        let Some((beside, _)) = lane_beside(id, |l| lanes.contains_key(l) && continues(l)) else {
+            continue;
+        };
+        let mut target_lanes = chain(&beside, false, &any);
+        let onward = chain(&beside, true, &|_, n| !target_lanes.iter().any(|t| t == n));
         target_lanes.extend(onward.into_iter().skip(1));
-        merges.extend(placed(doc, ramp_chain(id, &target_lanes), target_lanes, &left));
+        merges.extend(placed(doc, ramp_chain(id, &target_lanes), target_lanes, &beside));
     }
     // Junction merges: a lane whose links all lead into one edge, the first of them into a lane
     // that another incoming lane also leads into, and which yields to it there.
@@ -248,9 +252,7 @@ fn placed(
     if positions.form() == MergeForm::AccelerationLane {
         // An acceleration lane may span several edges: it begins at the first of the last ramp
         // lanes that each run beside a target lane.
-        let beside = |lane: &&String| {
-            split_lane_id(lane).is_some_and(|(edge, i)| target_lanes.contains(&format!("{edge}_{}", i + 1)))
-        };
+        let beside = |lane: &&String| lane_beside(lane, |l| target_lanes.iter().any(|t| t == l)).is_some();
         let first = ramp_lanes.iter().rev().take_while(beside).last()?;
         lane_start = positions.span(first)?.0;
     }
@@ -456,6 +458,32 @@ mod tests {
         assert_eq!(m.ramp_lanes, ["r_0", "b_0", "c_0"]);
         assert_eq!(m.target_lanes, ["a_0", "b_1", "c_1", "d_0"]);
         // b_0 runs beside b_1 from 200 m, c_0 beside c_1 to 360 m; the ramp starts at 160 m.
+        assert_eq!((m.ramp_start, m.lane_start, m.lane_end), (160.0, 200.0, 360.0));
+    }
+
+    #[test]
+    fn a_ramp_that_joins_on_the_inner_side_is_an_acceleration_lane_beside_the_lane_to_its_right() {
+        // The mirror of the two-edge case above: ramp r_0 -> b_1 -> c_1 (ends) on the freeway's
+        // inner side; freeway a_0 -> b_0 -> c_0 -> d_0.
+        let text = r#"<net>
+            <edge id="a"><lane id="a_0" index="0" length="200.00"/></edge>
+            <edge id="r"><lane id="r_0" index="0" length="40.00"/></edge>
+            <edge id="b"><lane id="b_0" index="0" length="100.00"/><lane id="b_1" index="1" length="100.00"/></edge>
+            <edge id="c"><lane id="c_0" index="0" length="60.00"/><lane id="c_1" index="1" length="60.00"/></edge>
+            <edge id="d"><lane id="d_0" index="0" length="300.00"/></edge>
+            <connection from="a" to="b" fromLane="0" toLane="0"/>
+            <connection from="r" to="b" fromLane="0" toLane="1"/>
+            <connection from="b" to="c" fromLane="0" toLane="0"/>
+            <connection from="b" to="c" fromLane="1" toLane="1"/>
+            <connection from="c" to="d" fromLane="0" toLane="0"/>
+            </net>"#;
+        let found = merges(text);
+        assert_eq!(found.len(), 1);
+        let m = &found[0];
+        assert_eq!(m.form, MergeForm::AccelerationLane);
+        assert_eq!(m.ramp_lanes, ["r_0", "b_1", "c_1"]);
+        assert_eq!(m.target_lanes, ["a_0", "b_0", "c_0", "d_0"]);
+        assert_eq!(m.target_lane, "c_0");
         assert_eq!((m.ramp_start, m.lane_start, m.lane_end), (160.0, 200.0, 360.0));
     }
 

@@ -102,9 +102,8 @@ impl LanePositions {
             .enumerate()
             .skip(1)
             .find_map(|(k, t)| Some((k, via_lanes(&links, accel, t, "ramp_lanes").ok()?)));
-        let beside = crate::sumo::geometry::split_lane_id(accel)
-            .map(|(edge, index)| format!("{edge}_{}", index + 1))
-            .filter(|l| target_lanes.contains(l));
+        let beside = crate::sumo::geometry::lane_beside(accel, |l| target_lanes.iter().any(|t| t == l))
+            .map(|(lane, _)| lane);
         // SUMO's drivers on a junction's minor road give way to all that approaches, unless they
         // can change lanes into the target lane beside them first (a lane drop).
         let mut minor_entry = beside.is_none();
@@ -113,8 +112,8 @@ impl LanePositions {
             (None, Some(beside)) => (MergeForm::AccelerationLane, beside),
             (None, None) => {
                 return Err(format!(
-                    "the last ramp lane `{accel}` must be an acceleration lane (the lane to its left \
-                     on the same edge one of target_lanes) or lead through a junction into one of \
+                    "the last ramp lane `{accel}` must be an acceleration lane (a lane beside it on \
+                     the same edge one of target_lanes) or lead through a junction into one of \
                      target_lanes"
                 ));
             }
