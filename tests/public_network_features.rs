@@ -3,7 +3,8 @@
 //! `--bikelanes.guess`), a signal where the ramp joins (ramp metering, `--tls.set`), and
 //! vehicle types that keep SUMO's default `minGap` (2.5 m, where ours keep 2), and a ramp fed
 //! by a collector road that an off-ramp of the same freeway also joins (SUMO's own
-//! `tools/game/ramp` network), and an on-ramp that joins on the freeway's inner side. A lane
+//! `tools/game/ramp` network), an on-ramp that joins on the freeway's inner side, and what
+//! osmWebWizard writes (a gzip-compressed network, a configuration without a step length). A lane
 //! closed to cars is neither a ramp nor a target lane, and a freeway lane is no ramp lane; the
 //! merge `net inspect` proposes drives in `cosim`, at a signal too, where no driven vehicle
 //! passes a red light.
@@ -366,6 +367,51 @@ fn a_ramp_that_joins_on_the_inner_side_merges_into_the_lane_to_its_right() {
     // With lane-change mode 0 SUMO changes no driven ramp vehicle's lane by itself: an ego that
     // finishes was moved to `acc_1` by the controller, the lane to the right of its own.
     let runs = inspect_and_drive(&dir, "controllable", "mpg", &["--lane-change-mode", "0"]);
+    assert!(
+        finished_egos(&runs[0]) >= 10,
+        "{} egos finished",
+        finished_egos(&runs[0])
+    );
+    assert_eq!(controlled_collisions(&runs[0]), 0);
+}
+
+#[test]
+fn a_compressed_network_and_a_configuration_without_a_step_length_run_as_given() {
+    use std::io::Write;
+    let dir = fresh_dir("public-gzip");
+    build(&dir, &[]);
+    let net = std::fs::read(dir.join("net.net.xml")).unwrap();
+    let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    gz.write_all(&net).unwrap();
+    std::fs::write(dir.join("osm.net.xml.gz"), gz.finish().unwrap()).unwrap();
+    std::fs::remove_file(dir.join("net.net.xml")).unwrap();
+    std::fs::write(
+        dir.join("osm.sumocfg"),
+        r#"<configuration><input><net-file value="osm.net.xml.gz"/><route-files value="m.rou.xml"/></input></configuration>"#,
+    )
+    .unwrap();
+    let out = mpgdrive_in(&dir, &["net", "inspect", "osm.net.xml.gz", "--out", "merge.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = mpgdrive_in(
+        &dir,
+        &[
+            "cosim",
+            "--sumocfg",
+            "osm.sumocfg",
+            "--end",
+            "200",
+            "--controllers",
+            "mpg",
+            "--no-diagrams",
+            "--json",
+            "--out",
+            "results",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("sets no step-length"), "{stderr}");
+    let runs: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
     assert!(
         finished_egos(&runs[0]) >= 10,
         "{} egos finished",

@@ -138,7 +138,7 @@ pub enum RoutesError {
 /// How many of the flows and explicit vehicles of the base file at `base_path` drive along a
 /// ramp of `merges`, and how many do not: which [`Streams`] it can give.
 pub fn flows_by_stream(base_path: &Path, merges: &[MergeGeometry]) -> Result<(usize, usize), RoutesError> {
-    let text = std::fs::read_to_string(base_path).map_err(|source| RoutesError::Io {
+    let text = crate::sumo::inputs::read_sumo_file(base_path).map_err(|source| RoutesError::Io {
         path: base_path.to_path_buf(),
         source,
     })?;
@@ -207,7 +207,7 @@ pub fn generate(
         let path = path.to_path_buf();
         move |source| RoutesError::Io { path, source }
     };
-    let text = std::fs::read_to_string(base_path).map_err(io(base_path))?;
+    let text = crate::sumo::inputs::read_sumo_file(base_path).map_err(io(base_path))?;
     let base = parse_base(base_path, &text, merges)?;
     let controllable = controllable_types(merges);
     let ctrl_type = controllable_type(&base, merges);
@@ -299,7 +299,11 @@ pub fn generate(
     let stem = base_path
         .file_name()
         .and_then(|n| n.to_str())
-        .map_or("routes", |n| n.trim_end_matches(".xml").trim_end_matches(".rou"));
+        .map_or("routes", |n| {
+            n.trim_end_matches(".gz")
+                .trim_end_matches(".xml")
+                .trim_end_matches(".rou")
+        });
     let mut manifest = Vec::new();
     for (&scale, &share) in spec
         .scales

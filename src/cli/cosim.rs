@@ -163,9 +163,14 @@ mod with_sumo {
             )));
         }
         let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
-        if args.attach.is_none() && (files.step_length - config.sim.dt).abs() > 1e-9 {
+        // SUMO runs at the policy's step where the configuration sets none (its default, 1 s,
+        // is nobody's choice); a step it sets must be the policy's.
+        if let Some(step) = files
+            .step_length
+            .filter(|s| args.attach.is_none() && (s - config.sim.dt).abs() > 1e-9)
+        {
             return Err(cosim::CosimError::StepLength {
-                sumo: files.step_length,
+                sumo: step,
                 config: config.sim.dt,
             }
             .into());
@@ -177,6 +182,13 @@ mod with_sumo {
         let geometries = MergeGeometry::load_all(&merge)?;
         let (positions, facts) =
             mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometries, &merge)?;
+        if files.step_length.is_none() && args.attach.is_none() {
+            eprintln!(
+                "cosim: {} sets no step-length (SUMO's default is 1 s): SUMO runs at the policy's {} s",
+                args.sumocfg.display(),
+                config.sim.dt
+            );
+        }
         if !facts.ssm {
             eprintln!(
                 "cosim: {} equips no vehicle with the SSM device: every vehicle gets one (the conflict metrics need it)",
@@ -209,6 +221,7 @@ mod with_sumo {
             out: args.out.clone(),
             timespace: !args.no_diagrams,
             equip_ssm: args.ssm_all || !facts.ssm,
+            step_length: files.step_length.is_none().then_some(config.sim.dt),
         };
         Ok((config, settings))
     }

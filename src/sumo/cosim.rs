@@ -71,6 +71,8 @@ pub struct CosimSettings {
     /// Equip every vehicle with SUMO's SSM device (when the inputs equip none: the conflict
     /// metrics need it).
     pub equip_ssm: bool,
+    /// SUMO's step length (s), set on its command line where the configuration sets none.
+    pub step_length: Option<f64>,
 }
 
 /// Errors of a co-sim run.
@@ -256,6 +258,9 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
     ];
     if settings.equip_ssm {
         args.extend(["--device.ssm.probability".into(), "1".into()]);
+    }
+    if let Some(step) = settings.step_length {
+        args.extend(["--step-length".into(), step.to_string()]);
     }
     if let Some(routes) = &settings.route_files {
         args.extend(["--route-files".into(), absolute(routes)]);

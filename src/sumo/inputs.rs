@@ -39,10 +39,25 @@ pub enum InputError {
 }
 
 fn read(path: &Path) -> Result<String, InputError> {
-    std::fs::read_to_string(path).map_err(|source| InputError::Read {
+    read_sumo_file(path).map_err(|source| InputError::Read {
         path: path.to_path_buf(),
         source,
     })
+}
+
+/// The text of a SUMO input file, plain or gzip-compressed as SUMO reads them too (netconvert's
+/// and osmWebWizard's `.net.xml.gz`): compressed when it begins with gzip's magic bytes,
+/// whatever its name.
+pub fn read_sumo_file(path: &Path) -> std::io::Result<String> {
+    let bytes = std::fs::read(path)?;
+    let bytes = if bytes.starts_with(&[0x1f, 0x8b]) {
+        let mut plain = Vec::new();
+        std::io::Read::read_to_end(&mut flate2::read::MultiGzDecoder::new(&bytes[..]), &mut plain)?;
+        plain
+    } else {
+        bytes
+    };
+    String::from_utf8(bytes).map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e))
 }
 
 fn parse<'a>(path: &Path, text: &'a str) -> Result<roxmltree::Document<'a>, InputError> {
@@ -68,8 +83,8 @@ pub struct ConfigFiles {
     pub routes: Vec<PathBuf>,
     /// `additional-files` (they may define routes and types).
     pub additional: Vec<PathBuf>,
-    /// `step-length` (s; SUMO's default, 1 s, when the configuration sets none).
-    pub step_length: f64,
+    /// `step-length` (s), if the configuration sets one (SUMO's default is 1 s).
+    pub step_length: Option<f64>,
     /// The configuration equips vehicles with the SSM device itself (`device.ssm.probability`
     /// or `device.ssm.explicit`).
     pub ssm_option: bool,
@@ -105,13 +120,14 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
         .ok_or_else(|| content(sumocfg, "names no network (<net-file value=\"...\"/>)".into()))?;
     let step = doc.descendants().find(|n| n.has_tag_name("step-length"));
     let step_length = match step.and_then(|n| n.attribute("value")) {
-        None => 1.0,
-        Some(v) => v
-            .trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite() && *x > 0.0)
-            .ok_or_else(|| content(sumocfg, format!("step-length {v:?} is not a positive number")))?,
+        None => None,
+        Some(v) => Some(
+            v.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite() && *x > 0.0)
+                .ok_or_else(|| content(sumocfg, format!("step-length {v:?} is not a positive number")))?,
+        ),
     };
     let ssm_option = doc
         .descendants()
@@ -418,4 +434,29 @@ pub fn check_inputs(
     let mut facts = check_routes(&routes, Some(&files.net))?;
     facts.ssm |= files.ssm_option;
     Ok((positions, facts))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn a_gzip_compressed_input_reads_as_its_plain_text_and_a_broken_one_is_an_error() {
+        let dir = std::env::temp_dir().join(format!("mpgdrive-gz-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let text = "<net version=\"1.9\"><edge id=\"a\"/></net>\n";
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        gz.write_all(text.as_bytes()).unwrap();
+        let gz = gz.finish().unwrap();
+        let (plain_path, gz_path, broken) =
+            (dir.join("n.net.xml"), dir.join("n.net.xml.gz"), dir.join("b.gz"));
+        std::fs::write(&plain_path, text).unwrap();
+        std::fs::write(&gz_path, &gz).unwrap();
+        std::fs::write(&broken, &gz[..gz.len() / 2]).unwrap();
+        assert_eq!(read_sumo_file(&plain_path).unwrap(), text);
+        assert_eq!(read_sumo_file(&gz_path).unwrap(), text);
+        assert!(matches!(read(&broken), Err(InputError::Read { .. })));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
