@@ -4,7 +4,8 @@
 //! vehicle types that keep SUMO's default `minGap` (2.5 m, where ours keep 2), and a ramp fed
 //! by a collector road that an off-ramp of the same freeway also joins (SUMO's own
 //! `tools/game/ramp` network), an on-ramp that joins on the freeway's inner side, and what
-//! osmWebWizard writes (a gzip-compressed network, a configuration without a step length). A lane
+//! osmWebWizard writes (a gzip-compressed network, trips without a controllable type, a
+//! configuration without a step length that asks for SUMO's verbose output). A lane
 //! closed to cars is neither a ramp nor a target lane, and a freeway lane is no ramp lane; the
 //! merge `net inspect` proposes drives in `cosim`, at a signal too, where no driven vehicle
 //! passes a red light.
@@ -376,18 +377,35 @@ fn a_ramp_that_joins_on_the_inner_side_merges_into_the_lane_to_its_right() {
 }
 
 #[test]
-fn a_compressed_network_and_a_configuration_without_a_step_length_run_as_given() {
+fn what_osm_web_wizard_writes_runs_as_it_is() {
     use std::io::Write;
-    let dir = fresh_dir("public-gzip");
+    let dir = fresh_dir("public-osm-wizard");
     build(&dir, &[]);
+    // osmWebWizard's files: a gzip-compressed network; trips of one type, no controllable one;
+    // a configuration without a step length that asks SUMO for verbose output and statistics.
     let net = std::fs::read(dir.join("net.net.xml")).unwrap();
     let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
     gz.write_all(&net).unwrap();
     std::fs::write(dir.join("osm.net.xml.gz"), gz.finish().unwrap()).unwrap();
     std::fs::remove_file(dir.join("net.net.xml")).unwrap();
+    let trips: String = (0..100)
+        .map(|k| {
+            let from = if k % 4 == 0 { "ramp" } else { "fw_in" };
+            format!(
+                r#"<trip id="veh{k}" type="veh_passenger" depart="{}.00" departLane="best" from="{from}" to="fw_out"/>"#,
+                2 * k
+            )
+        })
+        .collect();
+    std::fs::write(
+        dir.join("osm.passenger.trips.xml"),
+        format!(r#"<routes><vType id="veh_passenger" vClass="passenger"/>{trips}</routes>"#),
+    )
+    .unwrap();
     std::fs::write(
         dir.join("osm.sumocfg"),
-        r#"<configuration><input><net-file value="osm.net.xml.gz"/><route-files value="m.rou.xml"/></input></configuration>"#,
+        r#"<configuration><input><net-file value="osm.net.xml.gz"/><route-files value="osm.passenger.trips.xml"/></input>
+        <report><verbose value="true"/><duration-log.statistics value="true"/></report></configuration>"#,
     )
     .unwrap();
     let out = mpgdrive_in(&dir, &["net", "inspect", "osm.net.xml.gz", "--out", "merge.toml"]);
@@ -395,9 +413,35 @@ fn a_compressed_network_and_a_configuration_without_a_step_length_run_as_given()
     let out = mpgdrive_in(
         &dir,
         &[
+            "study",
+            "--sumocfg",
+            "osm.sumocfg",
+            "--shares",
+            "1",
+            "--seeds",
+            "0",
+            "--end",
+            "200",
+            "--out",
+            "st",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("`ctrl` is added as a copy of its first vType"),
+        "{stderr}"
+    );
+    // Every ramp trip drawn controllable, and `cosim --json` prints its results alone.
+    let routes = dir.join("st/share_100.0/routes/osm.passenger.trips_d1.20_m1.00_s0.rou.xml");
+    let out = mpgdrive_in(
+        &dir,
+        &[
             "cosim",
             "--sumocfg",
             "osm.sumocfg",
+            "--route-files",
+            routes.to_str().unwrap(),
             "--end",
             "200",
             "--controllers",
@@ -413,7 +457,7 @@ fn a_compressed_network_and_a_configuration_without_a_step_length_run_as_given()
     assert!(stderr.contains("sets no step-length"), "{stderr}");
     let runs: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
     assert!(
-        finished_egos(&runs[0]) >= 10,
+        finished_egos(&runs[0]) >= 15,
         "{} egos finished",
         finished_egos(&runs[0])
     );

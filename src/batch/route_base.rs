@@ -125,6 +125,9 @@ pub(super) struct Base {
     /// The first vType (outside a distribution) not of a controllable type: the type a ramp
     /// flow of a plain controllable type takes where a controllable share leaves it to SUMO.
     pub(super) human: Option<String>,
+    /// The controllable type the file did not define, added to `verbatim` as a copy of
+    /// `human` (SUMO's default car without one).
+    pub(super) derived_type: Option<String>,
 }
 
 pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base, RoutesError> {
@@ -146,6 +149,8 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
     let mut routes = Vec::new();
     let mut mixes = Vec::new();
     let mut human = None;
+    // The first such vType with its id replaced by the first controllable type's.
+    let mut human_copy = None;
     let mut flows = Vec::new();
     let mut explicit = Vec::new();
     for node in doc.root_element().children().filter(|n| n.is_element()) {
@@ -155,6 +160,15 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                 verbatim.push(text[node.range()].to_owned());
                 if human.is_none() {
                     human = attr("id").filter(|id| !controllable.contains(&id.as_str()));
+                    let id = node.attributes().find(|a| a.name() == "id");
+                    if let (Some(_), Some(id), Some(ctrl)) = (&human, id, controllable.first()) {
+                        let (element, value) = (node.range(), id.range_value());
+                        human_copy = Some(format!(
+                            "{}{ctrl}{}",
+                            &text[element.start..value.start],
+                            &text[value.end..element.end]
+                        ));
+                    }
                 }
             }
             "vTypeDistribution" => {
@@ -294,12 +308,24 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
     if flows.is_empty() && explicit.is_empty() {
         return Err(bad("no <flow>, <vehicle> or <trip> to scale".into()));
     }
+    // A file that defines no controllable type (osmWebWizard's trips, randomTrips without
+    // types) gets one: the same car as its first vType, or SUMO's default car.
+    let defined = |c: &str| verbatim.iter().any(|v| v.contains(&format!("id=\"{c}\"")));
+    let derived_type = match controllable.first() {
+        Some(ctrl) if !controllable.iter().any(|c| defined(c)) => {
+            let copy = human_copy.unwrap_or_else(|| format!("<vType id=\"{ctrl}\"/>"));
+            verbatim.push(copy);
+            Some(ctrl.to_string())
+        }
+        _ => None,
+    };
     Ok(Base {
         verbatim,
         flows,
         explicit,
         mixes,
         human,
+        derived_type,
     })
 }
 
@@ -412,5 +438,36 @@ mod tests {
         // beside no target lane.
         assert!(ramp.of_trip("a", None) && ramp.of_trip("y", Some("x r")));
         assert!(!ramp.of_trip("f", None) && !ramp.of_trip("acc", Some("g")));
+    }
+
+    #[test]
+    fn a_file_without_a_controllable_type_gets_a_copy_of_its_first_vtype() {
+        let merge: MergeGeometry = toml::from_str(
+            "conflict_point = 500.0\ncontrol_from = 380.0\nrelease_after = 200.0\n\
+             ramp_lanes = [\"r_0\", \"acc_0\"]\ntarget_lanes = [\"f_0\", \"acc_1\"]\n\
+             controllable_types = [\"ctrl\", \"av\"]\nplayers = \"controllable\"\n",
+        )
+        .unwrap();
+        let base = |types: &str| {
+            let text = format!(
+                "<routes>{types}<trip id=\"t\" type=\"veh_passenger\" depart=\"0\" from=\"r\" to=\"acc\"/></routes>"
+            );
+            let base = parse_base(Path::new("t.rou.xml"), &text, std::slice::from_ref(&merge)).unwrap();
+            (base.derived_type, base.verbatim)
+        };
+        // osmWebWizard's trips: the first controllable type is the same car, its children too.
+        let (derived, verbatim) = base(
+            "<vType id='veh_passenger' vClass=\"passenger\"><param key=\"k\" value=\"veh_passenger\"/></vType>",
+        );
+        assert_eq!(derived.as_deref(), Some("ctrl"));
+        assert_eq!(
+            verbatim.last().unwrap(),
+            "<vType id='ctrl' vClass=\"passenger\"><param key=\"k\" value=\"veh_passenger\"/></vType>"
+        );
+        // No vType at all: SUMO's default car.
+        assert_eq!(base("").1, ["<vType id=\"ctrl\"/>"]);
+        // A file that defines one of the controllable types keeps its own types.
+        let (derived, verbatim) = base("<vType id=\"veh_passenger\"/><vType id=\"av\" accel=\"3\"/>");
+        assert_eq!((derived, verbatim.len()), (None, 2));
     }
 }

@@ -109,6 +109,10 @@ pub struct ManifestEntry {
     pub streams: Streams,
     /// Vehicles written.
     pub vehicles: usize,
+    /// The controllable type the base file does not define, which this file defines as a copy
+    /// of the base's first vType (SUMO's default car without one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub derived_type: Option<String>,
 }
 
 /// Errors of route generation.
@@ -426,6 +430,7 @@ pub fn generate(
                 seed,
                 streams: spec.streams,
                 vehicles: vehicles.len(),
+                derived_type: base.derived_type.clone(),
             });
         }
     }

@@ -112,6 +112,12 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         streams: args.streams.into(),
     };
     let manifest = generate(&args.base, &merges, &spec, &args.out)?;
+    if let Some(ctrl) = manifest.first().and_then(|m| m.derived_type.as_ref()) {
+        eprintln!(
+            "routes: {} defines no controllable type: `{ctrl}` is added as a copy of its first vType",
+            args.base.display()
+        );
+    }
     for m in &manifest {
         print(&format!(
             "{} (scale {}{}, seed {}): {} vehicles",

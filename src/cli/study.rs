@@ -123,6 +123,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
     ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst))
         .context("installing the Ctrl-C handler")?;
     // Every batch of runs of one demand, share and streams: the route files, then the runs.
+    let noted = std::cell::Cell::new(false);
     let batch = |dir: &Path,
                  demand: f64,
                  share: f64,
@@ -139,6 +140,14 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             streams,
         };
         let manifest = generate(&base, &merges, &spec, &dir.join("routes"))?;
+        if let Some(ctrl) = manifest.first().and_then(|m| m.derived_type.as_ref())
+            && !noted.replace(true)
+        {
+            eprintln!(
+                "study: {} defines no controllable type: `{ctrl}` is added as a copy of its first vType",
+                base.display()
+            );
+        }
         let mut todo = Vec::new();
         for m in &manifest {
             let route = absolute(&dir.join("routes").join(&m.file))?;

@@ -239,6 +239,12 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         "true".into(),
         "--no-step-log".into(),
         "true".into(),
+        // Nothing of SUMO's on stdout, whatever the configuration's <report> asks (osmWebWizard's
+        // sets verbose and statistics): `cosim --json` writes its results there.
+        "--verbose".into(),
+        "false".into(),
+        "--duration-log.statistics".into(),
+        "false".into(),
         "--tripinfo-output".into(),
         absolute(tripinfo),
         "--device.ssm.file".into(),
