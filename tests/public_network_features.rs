@@ -5,7 +5,8 @@
 //! by a collector road that an off-ramp of the same freeway also joins (SUMO's own
 //! `tools/game/ramp` network), an on-ramp that joins on the freeway's inner side, and what
 //! osmWebWizard writes (a gzip-compressed network, trips without a controllable type, a
-//! configuration without a step length that asks for SUMO's verbose output). A lane
+//! configuration without a step length that asks for SUMO's verbose output), and on-ramps
+//! that join at zipper nodes, where SUMO's drivers merge by arrival. A lane
 //! closed to cars is neither a ramp nor a target lane, and a freeway lane is no ramp lane; the
 //! merge `net inspect` proposes drives in `cosim`, at a signal too, where no driven vehicle
 //! passes a red light.
@@ -73,15 +74,18 @@ fn inspect_and_drive(dir: &Path, players: &str, controllers: &str, args: &[&str]
     drive(dir, controllers, args)
 }
 
-/// `cosim` of `controllers` in `dir` (`merge.sumocfg`, `merge.toml`) for 200 s with `args`:
-/// the runs.
+/// `cosim` of `controllers` in `dir` (`merge.sumocfg`, `merge.toml`) with `args` (for 200 s
+/// unless they set `--end`): the runs.
 fn drive(dir: &Path, controllers: &str, args: &[&str]) -> Vec<serde_json::Value> {
+    let end: &[&str] = if args.contains(&"--end") {
+        &[]
+    } else {
+        &["--end", "200"]
+    };
     let cosim = [
         "cosim",
         "--sumocfg",
         "merge.sumocfg",
-        "--end",
-        "200",
         "--controllers",
         controllers,
         "--no-diagrams",
@@ -89,7 +93,7 @@ fn drive(dir: &Path, controllers: &str, args: &[&str]) -> Vec<serde_json::Value>
         "--out",
         "results",
     ];
-    let out = mpgdrive_in(dir, &[&cosim[..], args].concat());
+    let out = mpgdrive_in(dir, &[&cosim[..], end, args].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).unwrap()
 }
@@ -462,4 +466,65 @@ fn what_osm_web_wizard_writes_runs_as_it_is() {
         finished_egos(&runs[0])
     );
     assert_eq!(controlled_collisions(&runs[0]), 0);
+}
+
+#[test]
+fn at_zipper_junctions_players_let_sumos_drivers_ahead_take_their_turn() {
+    // A one-lane road at 30 m/s joined by two one-lane ramps at zipper nodes 400 m apart.
+    let dir = fresh_dir("public-zipper");
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    write(
+        "z.nod.xml",
+        r#"<nodes><node id="a" x="0" y="0"/><node id="j1" x="700" y="0" type="zipper"/><node id="j2" x="1100" y="0" type="zipper"/>
+        <node id="d" x="1800" y="0"/><node id="r1" x="400" y="-120"/><node id="r2" x="800" y="-120"/></nodes>"#,
+    );
+    write(
+        "z.edg.xml",
+        r#"<edges><edge id="e1" from="a" to="j1" numLanes="1" speed="30" priority="3"/>
+        <edge id="e2" from="j1" to="j2" numLanes="1" speed="30" priority="3"/><edge id="e3" from="j2" to="d" numLanes="1" speed="30" priority="3"/>
+        <edge id="on1" from="r1" to="j1" numLanes="1" speed="20" priority="1"/><edge id="on2" from="r2" to="j2" numLanes="1" speed="20" priority="1"/></edges>"#,
+    );
+    let out = Command::new("netconvert")
+        .current_dir(&dir)
+        .args(["-n", "z.nod.xml", "-e", "z.edg.xml", "-o", "net.net.xml"])
+        .output()
+        .expect("netconvert (SUMO's network builder) is installed with SUMO");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    write(
+        "z.rou.xml",
+        r#"<routes><vType id="car" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5" speedDev="0.1"/>
+        <vType id="ctrl" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5" speedDev="0.1"/>
+        <flow id="main" type="car" begin="0" end="600" vehsPerHour="1100" from="e1" to="e3" departSpeed="max"/>
+        <flow id="o1" type="car" begin="0" end="600" vehsPerHour="250" from="on1" to="e3" departSpeed="max"/>
+        <flow id="o2" type="car" begin="0" end="600" vehsPerHour="250" from="on2" to="e3" departSpeed="max"/></routes>"#,
+    );
+    write(
+        "merge.sumocfg",
+        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/z_d1.00_m0.30_s1.rou.xml"/></input>
+        <time><step-length value="0.1"/></time></configuration>"#,
+    );
+    let out = mpgdrive_in(&dir, &["net", "inspect", "net.net.xml", "--out", "merge.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let routes = [
+        "routes",
+        "--base",
+        "z.rou.xml",
+        "--controllable-share",
+        "0.3",
+        "--mainline-controllable-share",
+        "0.3",
+        "--seeds",
+        "1",
+        "--duration",
+        "600",
+        "--out",
+        "r",
+    ];
+    let out = mpgdrive_in(&dir, &routes);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // SUMO seed 1: a player drove on beside SUMO's driver just ahead of it at the first zipper
+    // (t = 486 s) and they collided in the junction, before players followed such drivers.
+    let run = &drive(&dir, "mpg", &["--end", "600", "--seed", "1"])[0];
+    assert!(finished_egos(run) >= 15, "{} egos finished", finished_egos(run));
+    assert_eq!(controlled_collisions(run), 0);
 }

@@ -153,6 +153,7 @@ impl TensorBatch {
                 humans: self.humans[b].clone(),
                 yields: self.yields[b].clone(),
                 gives_way: Vec::new(),
+                zips: Vec::new(),
                 v_desired: self.own_desired[b],
             })
             .collect()

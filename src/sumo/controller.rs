@@ -986,6 +986,10 @@ impl Controller {
             .positions
             .minor_entry()
             .then(|| gives_way(cars, self.geometry.control_from, |id| self.egos.contains_key(id)));
+        let zips = self
+            .positions
+            .zipper_entry()
+            .then(|| zips(cars, |id| self.egos.contains_key(id)));
         for game in games {
             // Traffic games share one scene (every car, in the order of `cars`): built once.
             if scenes.is_empty() || !self.traffic {
@@ -998,6 +1002,9 @@ impl Controller {
                 scene.v_desired = self.v_desired;
                 if let Some(gives) = &gives {
                     scene.gives_way = game.members.iter().map(|&(j, _)| gives[j]).collect();
+                }
+                if let Some(zips) = &zips {
+                    scene.zips = game.members.iter().map(|&(j, _)| zips[j]).collect();
                 }
                 let mut nb = Vec::new();
                 find_neighbors(&scene, &mut self.order, &mut nb);
@@ -1316,6 +1323,19 @@ fn gives_way(cars: &[Car], control_from: f64, is_ego: impl Fn(&str) -> bool) -> 
         .collect()
 }
 
+/// Which of `cars` take their turn at a zipper junction ([`Scene::zips`],
+/// [`LanePositions::zipper_entry`]): SUMO's own ramp drivers (not `is_ego`) with no ego ahead
+/// of them on the ramp, who go when they reach the junction first. A player the policy drives
+/// does not merge by SUMO's zipper rule: on a zipper junction (`net build`-free, netconvert's
+/// `type="zipper"`), 30% of the vehicles playing, one drove on beside SUMO's driver ahead of it
+/// and they collided in the junction. Ramp vehicles queued behind an ego wait for it, which
+/// enters by the entry rule.
+fn zips(cars: &[Car], is_ego: impl Fn(&str) -> bool) -> Vec<bool> {
+    cars.iter()
+        .map(|c| c.on_ramp && !is_ego(&c.id) && !cars.iter().any(|h| h.on_ramp && h.x > c.x && is_ego(&h.id)))
+        .collect()
+}
+
 /// The feasibility projection's upper bound (TTC >= tau_s, `rules`' clearance) of ramp-lane
 /// vehicle `j` towards the vehicle physically ahead of it on the ramp lanes or on its route
 /// (its SUMO leader), when that is not already its leader in the scene (`scene_leader`). A
@@ -1433,6 +1453,23 @@ mod tests {
         assert_eq!(gives_way(&cars[1..], 60.0, ego), [false, false, true, false]);
         // Before control_from a ramp vehicle is no ego yet, whoever drives it.
         assert_eq!(gives_way(&cars, 165.0, ego), [true, true, false, false, false]);
+    }
+
+    #[test]
+    fn at_a_zipper_sumos_drivers_with_no_ego_ahead_of_them_take_their_turn() {
+        // SUMO's driver h1 heads the ramp, ego e1 behind it, SUMO's driver h2 behind the ego; a
+        // target-lane car t.
+        let cars = [
+            car("h1", 178.0, 10.0, true),
+            car("e1", 170.0, 10.0, true),
+            car("h2", 160.0, 10.0, true),
+            car("t", 175.0, 20.0, false),
+        ];
+        let ego = |id: &str| id.starts_with('e');
+        assert_eq!(zips(&cars, ego), [true, false, false, false]);
+        // Once the ego has entered (no longer on the ramp), the driver behind it takes its turn.
+        let entered = [cars[0].clone(), car("e1", 172.0, 10.0, false), cars[2].clone()];
+        assert_eq!(zips(&entered, ego), [true, false, true]);
     }
 
     #[test]

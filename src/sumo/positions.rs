@@ -46,6 +46,9 @@ pub struct LanePositions {
     /// traffic light, from a ramp lane with no target lane beside it: SUMO's drivers there give
     /// way to every vehicle approaching on the target lane.
     minor_entry: bool,
+    /// A junction merge whose entry links are all zipper links (SUMO's `Z`), with no traffic
+    /// light: SUMO's drivers there merge by arrival, the first at the junction first.
+    zipper_entry: bool,
 }
 
 /// How the ramp joins the target lane.
@@ -107,6 +110,7 @@ impl LanePositions {
         // SUMO's drivers on a junction's minor road give way to all that approaches, unless they
         // can change lanes into the target lane beside them first (a lane drop).
         let mut minor_entry = beside.is_none();
+        let mut zipper_entry = true;
         let (form, meets) = match (&joins, beside) {
             (Some((k, _)), _) => (MergeForm::Junction, target_lanes[*k].clone()),
             (None, Some(beside)) => (MergeForm::AccelerationLane, beside),
@@ -157,6 +161,7 @@ impl LanePositions {
                 // line on (a ramp linked to several lanes may take any of them).
                 for link in links.iter().filter(|l| l.from == *accel) {
                     minor_entry &= !link.signalised && matches!(link.state.as_str(), "m" | "s");
+                    zipper_entry &= !link.signalised && link.state == "Z";
                     if let Some(via) = &link.via {
                         if vias.first() != Some(via) {
                             place(via, start, 1.0)?;
@@ -169,6 +174,7 @@ impl LanePositions {
             }
             None => {
                 minor_entry = false;
+                zipper_entry = false;
                 place(accel, start, length(&meets)? / length(accel)?)?;
             }
         }
@@ -192,6 +198,7 @@ impl LanePositions {
             road_speed,
             signalised,
             minor_entry,
+            zipper_entry,
         })
     }
 
@@ -220,6 +227,13 @@ impl LanePositions {
     /// with it).
     pub fn minor_entry(&self) -> bool {
         self.minor_entry
+    }
+
+    /// Whether the ramp enters by zipper links without a traffic light (SUMO's `Z`, a zipper
+    /// node): SUMO's drivers there go by arrival at the junction and take their turn, whether or
+    /// not the vehicles behind them on the target lane made room.
+    pub fn zipper_entry(&self) -> bool {
+        self.zipper_entry
     }
 
     /// Whether a traffic light controls a link out of a ramp or target lane (ramp metering, or
@@ -398,17 +412,22 @@ mod tests {
         assert_eq!(p.position(":j_0_1", 2.0), Some(100.0));
         assert!(p.is_entry(":j_0_0") && p.is_entry(":j_0_1"));
         assert!(!p.is_entry(":j_1_0") && !p.is_entry("r_0"));
-        // Its ramp enters by minor links: SUMO's drivers give way there; not on a zipper, nor
-        // behind a traffic light.
-        assert!(p.minor_entry());
-        for (from, to) in [
-            (r#"state="m""#, r#"state="Z""#),
-            (r#"state="m""#, r#"tl="j" state="o""#),
+        // Its ramp enters by minor links: SUMO's drivers give way there; not on a zipper, where
+        // they take their turn, nor behind a traffic light (neither there).
+        assert!(p.minor_entry() && !p.zipper_entry());
+        for (from, to, zipper) in [
+            (r#"state="m""#, r#"state="Z""#, true),
+            (r#"state="m""#, r#"tl="j" state="o""#, false),
+            (r#"state="m""#, r#"tl="j" state="Z""#, false),
         ] {
             let net = JUNCTION.replace(from, to);
             let doc = roxmltree::Document::parse(&net).unwrap();
             let p = LanePositions::of_network(&doc, &lanes(&["r_0"]), &lanes(&["a_0", "o_0"]), 0.0).unwrap();
-            assert_eq!((p.form(), p.minor_entry()), (MergeForm::Junction, false), "{to}");
+            assert_eq!(
+                (p.form(), p.minor_entry(), p.zipper_entry()),
+                (MergeForm::Junction, false, zipper),
+                "{to}"
+            );
         }
         // A lane drop: the ending lane i_0 has the target lane i_1 beside it, so SUMO's drivers
         // change lanes into it before the stop line.

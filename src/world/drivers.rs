@@ -188,6 +188,7 @@ mod tests {
             humans: vec![false, true],
             yields: vec![yields; 2],
             gives_way: Vec::new(),
+            zips: Vec::new(),
             v_desired: None,
         };
         let (mut order, mut nb) = (Vec::new(), Vec::new());
@@ -267,6 +268,35 @@ mod tests {
         assert_eq!(act(&config, &minor, 2), 0.0);
         config.sim.players_make_room = false;
         assert_eq!(act(&config, &scene, 2), 0.0);
+    }
+
+    #[test]
+    fn a_player_follows_a_ramp_vehicle_ahead_that_takes_its_turn_at_a_zipper() {
+        // The scene above (x_c 180, clearance 7 m, time gap 1 s, tau_s 3 s, dt 0.1 s): ramp
+        // vehicle R at 164.8 m, 4 m/s; T at 150 m and P at 130 m, both at 10 m/s; no room made.
+        use crate::world::rules::WorldRules;
+        use crate::world::step::applied_action;
+        let mut config = traffic_config();
+        config.sim.players_make_room = false;
+        let scene = Scene::new(vec![
+            at(164.8, 4.0, true),
+            at(150.0, 10.0, false),
+            at(130.0, 10.0, false),
+        ]);
+        let zipper = Scene {
+            zips: vec![true, false, false],
+            ..scene.clone()
+        };
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&scene, &mut order, &mut nb);
+        let act =
+            |scene: &Scene, i: usize| applied_action(&WorldRules::new(&config), true, scene, i, &nb[i], 0.0);
+        assert_eq!((act(&scene, 1), act(&scene, 2)), (0.0, 0.0));
+        // R takes its turn: T, 7.2 m behind it one step on (less the clearance), brakes as behind
+        // a leader, v' <= (4 + 7.2 / 3) * 0.75 = 4.8, a = -52, at g; P keeps the projection's
+        // gap behind R (the first of them ahead, past T): v' <= (4 + 27.2 / 3) * 0.75 = 9.8.
+        assert_eq!(act(&zipper, 1), -config.vehicle.max_accel);
+        assert!((act(&zipper, 2) + 2.0).abs() < 1e-9, "{}", act(&zipper, 2));
     }
 
     #[test]

@@ -36,6 +36,11 @@ pub struct Scene {
     /// taken, as they go only once the target lane before them is clear. Empty: none (every
     /// ramp vehicle enters by the entry rule, training's world).
     pub gives_way: Vec<bool>,
+    /// Which ramp vehicles take their turn at a zipper junction, by index: SUMO's drivers there
+    /// (`cosim`, [`crate::sumo::LanePositions::zipper_entry`]), who go when they reach the
+    /// junction first, room or not. A player counts the first of them ahead of it as its
+    /// leader, as SUMO's drivers behind them do. Empty: none (training's world).
+    pub zips: Vec<bool>,
     /// The scene's desired speed `v_d` (m/s): the speed the reward's speed term tracks, and
     /// (scaled by `v_d / reward.v_desired`) the IDM drivers' `v0`. None: the configuration's
     /// `reward.v_desired` (the paper's world). Merge traffic draws it per scene
@@ -51,6 +56,7 @@ impl Scene {
             humans: Vec::new(),
             yields: Vec::new(),
             gives_way: Vec::new(),
+            zips: Vec::new(),
             v_desired: None,
         }
     }
@@ -74,6 +80,11 @@ impl Scene {
     /// ([`Scene::gives_way`]).
     pub fn gives_way(&self, i: usize) -> bool {
         self.gives_way.get(i).copied().unwrap_or(false)
+    }
+
+    /// Whether ramp vehicle `i` takes its turn at a zipper junction ([`Scene::zips`]).
+    pub fn zips(&self, i: usize) -> bool {
+        self.zips.get(i).copied().unwrap_or(false)
     }
 
     /// Number of players.

@@ -125,6 +125,13 @@ pub fn applied_action_with(
         if rules.feasibility_across_lanes && !me.on_ramp {
             (lo, hi) = across_lanes(scene, me, nb, (lo, hi), rules);
         }
+        if let Some(j) = zipper_leader(scene, i) {
+            let absent = neighbor_of(scene, None, me);
+            let ramp = neighbor_of(scene, Some(j), me);
+            let (_, behind) =
+                feasible_interval_after(&me.x, &me.v, &ramp, &ramp.v, &absent, &rules.projection());
+            hi = hi.min(behind);
+        }
         a = project_feasible(&a, &lo, &hi);
         if rules.players_make_room {
             if let Some(j) = player_makes_room_for(&rules.road, scene, i) {
@@ -146,6 +153,19 @@ pub fn applied_action_with(
         a = a.min(lane_end_bound(&me.x, &me.v, &rules.gate));
     }
     clip_action(&a, &me.v, rules.max_accel, rules.v_min, rules.v_max, dt)
+}
+
+/// The ramp vehicle a target-lane player `i` follows at a zipper junction: the first ahead of
+/// it of those that take their turn there ([`Scene::zips`]).
+fn zipper_leader(scene: &Scene, i: usize) -> Option<usize> {
+    let me = &scene.vehicles[i];
+    if me.on_ramp || scene.is_human(i) {
+        return None;
+    }
+    (scene.vehicles.iter().enumerate())
+        .filter(|&(j, r)| r.on_ramp && r.x > me.x && scene.zips(j))
+        .min_by(|(_, p), (_, q)| p.x.total_cmp(&q.x))
+        .map(|(j, _)| j)
 }
 
 /// `sim.feasibility_across_lanes`: the target-lane vehicle `me`'s feasible interval `(lo, hi)`

@@ -230,6 +230,7 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
         humans,
         yields,
         gives_way: Vec::new(),
+        zips: Vec::new(),
         v_desired,
     }
 }
