@@ -5,8 +5,8 @@
 //! by a collector road that an off-ramp of the same freeway also joins (SUMO's own
 //! `tools/game/ramp` network), an on-ramp that joins on the freeway's inner side, and what
 //! osmWebWizard writes (a gzip-compressed network, trips without a controllable type, a
-//! configuration without a step length that asks for SUMO's verbose output), and on-ramps
-//! that join at zipper nodes, where SUMO's drivers merge by arrival. A lane
+//! configuration without a step length that asks for SUMO's verbose output), on-ramps that
+//! join at zipper nodes, where SUMO's drivers merge by arrival, and trucks. A lane
 //! closed to cars is neither a ramp nor a target lane, and a freeway lane is no ramp lane; the
 //! merge `net inspect` proposes drives in `cosim`, at a signal too, where no driven vehicle
 //! passes a red light.
@@ -61,6 +61,31 @@ fn build(dir: &Path, options: &[&str]) {
 /// `mpgdrive ARGS` run in `dir`.
 fn mpgdrive_in(dir: &Path, args: &[&str]) -> std::process::Output {
     bin().current_dir(dir).args(args).output().unwrap()
+}
+
+/// `dir/net.net.xml`, built by netconvert from plain `nodes` and `edges` and, unless empty,
+/// the connections `links` (from edge, lane, to edge, lane).
+fn netconvert(dir: &Path, nodes: &str, edges: &str, links: &[(&str, u32, &str, u32)]) {
+    std::fs::write(dir.join("n.nod.xml"), format!("<nodes>{nodes}</nodes>")).unwrap();
+    std::fs::write(dir.join("n.edg.xml"), format!("<edges>{edges}</edges>")).unwrap();
+    let mut args = vec!["-n", "n.nod.xml", "-e", "n.edg.xml", "-o", "net.net.xml"];
+    if !links.is_empty() {
+        let links: String = (links.iter())
+            .map(|(a, i, b, j)| format!(r#"<connection from="{a}" to="{b}" fromLane="{i}" toLane="{j}"/>"#))
+            .collect();
+        std::fs::write(
+            dir.join("n.con.xml"),
+            format!("<connections>{links}</connections>"),
+        )
+        .unwrap();
+        args.extend(["-x", "n.con.xml"]);
+    }
+    let out = Command::new("netconvert")
+        .current_dir(dir)
+        .args(&args)
+        .output()
+        .expect("netconvert (SUMO's network builder) is installed with SUMO");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
 /// `mpgdrive net inspect` in `dir`, writing `merge.toml` (its `players` set to `players`),
@@ -165,15 +190,12 @@ fn a_ramp_metered_merge_drives_the_game_as_well_as_sumo_without_passing_a_red_li
 /// `offramp` from the freeway through `col` to `exit` (300 veh/h), all of type `car`.
 fn build_collector(dir: &Path) {
     let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
-    write(
-        "c.nod.xml",
-        r#"<nodes><node id="A" x="0" y="0"/><node id="D" x="500" y="0"/><node id="M" x="900" y="0"/>
+    netconvert(
+        dir,
+        r#"<node id="A" x="0" y="0"/><node id="D" x="500" y="0"/><node id="M" x="900" y="0"/>
         <node id="E" x="1100" y="0"/><node id="B" x="1800" y="0"/><node id="J" x="600" y="-150"/>
-        <node id="R" x="300" y="-300"/><node id="K" x="750" y="-150"/><node id="X" x="900" y="-350"/></nodes>"#,
-    );
-    write(
-        "c.edg.xml",
-        r#"<edges><edge id="f1" from="A" to="D" numLanes="2" speed="30" priority="3"/>
+        <node id="R" x="300" y="-300"/><node id="K" x="750" y="-150"/><node id="X" x="900" y="-350"/>"#,
+        r#"<edge id="f1" from="A" to="D" numLanes="2" speed="30" priority="3"/>
         <edge id="f2" from="D" to="M" numLanes="1" speed="30" priority="3"/>
         <edge id="f3" from="M" to="E" numLanes="2" speed="30" priority="3"/>
         <edge id="f4" from="E" to="B" numLanes="1" speed="30" priority="3"/>
@@ -181,38 +203,19 @@ fn build_collector(dir: &Path) {
         <edge id="on" from="R" to="J" numLanes="1" speed="15" priority="2"/>
         <edge id="col" from="J" to="K" numLanes="1" speed="15" priority="2"/>
         <edge id="exit" from="K" to="X" numLanes="1" speed="15" priority="1"/>
-        <edge id="onr" from="K" to="M" numLanes="1" speed="15" priority="1"/></edges>"#,
+        <edge id="onr" from="K" to="M" numLanes="1" speed="15" priority="1"/>"#,
+        &[
+            ("f1", 0, "off", 0),
+            ("f1", 1, "f2", 0),
+            ("f2", 0, "f3", 1),
+            ("onr", 0, "f3", 0),
+            ("f3", 1, "f4", 0),
+            ("off", 0, "col", 0),
+            ("on", 0, "col", 0),
+            ("col", 0, "exit", 0),
+            ("col", 0, "onr", 0),
+        ],
     );
-    let links: String = [
-        ("f1", 0, "off", 0),
-        ("f1", 1, "f2", 0),
-        ("f2", 0, "f3", 1),
-        ("onr", 0, "f3", 0),
-        ("f3", 1, "f4", 0),
-        ("off", 0, "col", 0),
-        ("on", 0, "col", 0),
-        ("col", 0, "exit", 0),
-        ("col", 0, "onr", 0),
-    ]
-    .iter()
-    .map(|(a, i, b, j)| format!(r#"<connection from="{a}" to="{b}" fromLane="{i}" toLane="{j}"/>"#))
-    .collect();
-    write("c.con.xml", &format!("<connections>{links}</connections>"));
-    let out = Command::new("netconvert")
-        .current_dir(dir)
-        .args([
-            "-n",
-            "c.nod.xml",
-            "-e",
-            "c.edg.xml",
-            "-x",
-            "c.con.xml",
-            "-o",
-            "net.net.xml",
-        ])
-        .output()
-        .expect("netconvert (SUMO's network builder) is installed with SUMO");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     write(
         "c.rou.xml",
         r#"<routes><vType id="car" length="5" accel="2.6" decel="4.5" sigma="0.5"/>
@@ -309,44 +312,22 @@ fn a_ramp_fed_by_a_collector_road_holds_no_freeway_lane_and_only_its_vehicles_ar
 /// flows (2,000 veh/h on the freeway, 400 on the ramp, of type `ctrl`).
 fn build_inner(dir: &Path) {
     let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
-    write(
-        "i.nod.xml",
-        r#"<nodes><node id="A" x="0" y="0"/><node id="B" x="600" y="0"/><node id="C" x="800" y="0"/>
-        <node id="D" x="1400" y="0"/><node id="R" x="150" y="160"/></nodes>"#,
-    );
-    write(
-        "i.edg.xml",
-        r#"<edges><edge id="in" from="A" to="B" numLanes="2" speed="30"/>
+    netconvert(
+        dir,
+        r#"<node id="A" x="0" y="0"/><node id="B" x="600" y="0"/><node id="C" x="800" y="0"/>
+        <node id="D" x="1400" y="0"/><node id="R" x="150" y="160"/>"#,
+        r#"<edge id="in" from="A" to="B" numLanes="2" speed="30"/>
         <edge id="acc" from="B" to="C" numLanes="3" speed="30"/>
         <edge id="out" from="C" to="D" numLanes="2" speed="30"/>
-        <edge id="ramp" from="R" to="B" numLanes="1" speed="20"/></edges>"#,
+        <edge id="ramp" from="R" to="B" numLanes="1" speed="20"/>"#,
+        &[
+            ("in", 0, "acc", 0),
+            ("in", 1, "acc", 1),
+            ("ramp", 0, "acc", 2),
+            ("acc", 0, "out", 0),
+            ("acc", 1, "out", 1),
+        ],
     );
-    let links: String = [
-        ("in", 0, "acc", 0),
-        ("in", 1, "acc", 1),
-        ("ramp", 0, "acc", 2),
-        ("acc", 0, "out", 0),
-        ("acc", 1, "out", 1),
-    ]
-    .iter()
-    .map(|(a, i, b, j)| format!(r#"<connection from="{a}" to="{b}" fromLane="{i}" toLane="{j}"/>"#))
-    .collect();
-    write("i.con.xml", &format!("<connections>{links}</connections>"));
-    let out = Command::new("netconvert")
-        .current_dir(dir)
-        .args([
-            "-n",
-            "i.nod.xml",
-            "-e",
-            "i.edg.xml",
-            "-x",
-            "i.con.xml",
-            "-o",
-            "net.net.xml",
-        ])
-        .output()
-        .expect("netconvert (SUMO's network builder) is installed with SUMO");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     write(
         "i.rou.xml",
         r#"<routes><vType id="car" length="5" accel="2.6" decel="4.5" sigma="0.5"/>
@@ -473,23 +454,15 @@ fn at_zipper_junctions_players_let_sumos_drivers_ahead_take_their_turn() {
     // A one-lane road at 30 m/s joined by two one-lane ramps at zipper nodes 400 m apart.
     let dir = fresh_dir("public-zipper");
     let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
-    write(
-        "z.nod.xml",
-        r#"<nodes><node id="a" x="0" y="0"/><node id="j1" x="700" y="0" type="zipper"/><node id="j2" x="1100" y="0" type="zipper"/>
-        <node id="d" x="1800" y="0"/><node id="r1" x="400" y="-120"/><node id="r2" x="800" y="-120"/></nodes>"#,
-    );
-    write(
-        "z.edg.xml",
-        r#"<edges><edge id="e1" from="a" to="j1" numLanes="1" speed="30" priority="3"/>
+    netconvert(
+        &dir,
+        r#"<node id="a" x="0" y="0"/><node id="j1" x="700" y="0" type="zipper"/><node id="j2" x="1100" y="0" type="zipper"/>
+        <node id="d" x="1800" y="0"/><node id="r1" x="400" y="-120"/><node id="r2" x="800" y="-120"/>"#,
+        r#"<edge id="e1" from="a" to="j1" numLanes="1" speed="30" priority="3"/>
         <edge id="e2" from="j1" to="j2" numLanes="1" speed="30" priority="3"/><edge id="e3" from="j2" to="d" numLanes="1" speed="30" priority="3"/>
-        <edge id="on1" from="r1" to="j1" numLanes="1" speed="20" priority="1"/><edge id="on2" from="r2" to="j2" numLanes="1" speed="20" priority="1"/></edges>"#,
+        <edge id="on1" from="r1" to="j1" numLanes="1" speed="20" priority="1"/><edge id="on2" from="r2" to="j2" numLanes="1" speed="20" priority="1"/>"#,
+        &[],
     );
-    let out = Command::new("netconvert")
-        .current_dir(&dir)
-        .args(["-n", "z.nod.xml", "-e", "z.edg.xml", "-o", "net.net.xml"])
-        .output()
-        .expect("netconvert (SUMO's network builder) is installed with SUMO");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     write(
         "z.rou.xml",
         r#"<routes><vType id="car" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5" speedDev="0.1"/>
@@ -526,5 +499,82 @@ fn at_zipper_junctions_players_let_sumos_drivers_ahead_take_their_turn() {
     // (t = 486 s) and they collided in the junction, before players followed such drivers.
     let run = &drive(&dir, "mpg", &["--end", "600", "--seed", "1"])[0];
     assert!(finished_egos(run) >= 15, "{} egos finished", finished_egos(run));
+    assert_eq!(controlled_collisions(run), 0);
+}
+
+#[test]
+fn gaps_to_trucks_are_their_bumper_gaps() {
+    // A two-lane road at 33 m/s joined by a two-lane ramp that drops to one lane into an
+    // acceleration lane; 16.5 m trucks among the cars on both.
+    let dir = fresh_dir("public-trucks");
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    netconvert(
+        &dir,
+        r#"<node id="a" x="0" y="0"/><node id="b" x="600" y="0"/><node id="c" x="850" y="0"/><node id="d" x="1500" y="0"/>
+        <node id="r0" x="150" y="-160"/><node id="r1" x="420" y="-50"/>"#,
+        r#"<edge id="in" from="a" to="b" numLanes="2" speed="33"/><edge id="acc" from="b" to="c" numLanes="3" speed="33"/>
+        <edge id="out" from="c" to="d" numLanes="2" speed="33"/><edge id="rampA" from="r0" to="r1" numLanes="2" speed="22"/>
+        <edge id="rampB" from="r1" to="b" numLanes="1" speed="22"/>"#,
+        &[
+            ("rampA", 0, "rampB", 0),
+            ("rampA", 1, "rampB", 0),
+            ("rampB", 0, "acc", 0),
+            ("in", 0, "acc", 1),
+            ("in", 1, "acc", 2),
+            ("acc", 1, "out", 0),
+            ("acc", 2, "out", 1),
+        ],
+    );
+    write(
+        "t.rou.xml",
+        r#"<routes><vType id="car" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5" speedDev="0.1"/>
+        <vType id="ctrl" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5" speedDev="0.1"/>
+        <vType id="truck" vClass="truck" length="16.5" minGap="2.5" accel="1.1" decel="4.0" sigma="0.5" maxSpeed="25"/>
+        <flow id="main" type="car" begin="0" end="600" vehsPerHour="2200" from="in" to="out" departLane="best" departSpeed="max"/>
+        <flow id="trk" type="truck" begin="0" end="600" vehsPerHour="500" from="in" to="out" departLane="best" departSpeed="max"/>
+        <flow id="onr" type="car" begin="0" end="600" vehsPerHour="500" from="rampA" to="out" departLane="best" departSpeed="max"/>
+        <flow id="ontrk" type="truck" begin="0" end="600" vehsPerHour="100" from="rampA" to="out" departLane="best" departSpeed="max"/></routes>"#,
+    );
+    write(
+        "merge.sumocfg",
+        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/t_d1.20_m0.30_s1.rou.xml"/></input>
+        <time><step-length value="0.1"/></time></configuration>"#,
+    );
+    let out = mpgdrive_in(
+        &dir,
+        &[
+            "net",
+            "inspect",
+            "net.net.xml",
+            "--merge",
+            "1",
+            "--out",
+            "merge.toml",
+        ],
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let routes = [
+        "routes",
+        "--base",
+        "t.rou.xml",
+        "--scales",
+        "1.2",
+        "--controllable-share",
+        "0.3",
+        "--mainline-controllable-share",
+        "0.3",
+        "--seeds",
+        "1",
+        "--duration",
+        "600",
+        "--out",
+        "r",
+    ];
+    let out = mpgdrive_in(&dir, &routes);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // SUMO seed 1: a driven car ran into a truck's rear, and a truck into an ego that entered
+    // in front of it, while the world took every vehicle for a 5 m car.
+    let run = &drive(&dir, "mpg", &["--end", "600", "--seed", "1"])[0];
+    assert!(finished_egos(run) >= 20, "{} egos finished", finished_egos(run));
     assert_eq!(controlled_collisions(run), 0);
 }

@@ -154,6 +154,7 @@ impl TensorBatch {
                 yields: self.yields[b].clone(),
                 gives_way: Vec::new(),
                 zips: Vec::new(),
+                excess: Vec::new(),
                 v_desired: self.own_desired[b],
             })
             .collect()

@@ -182,6 +182,8 @@ struct Car {
     held_at_red: bool,
     /// The speed limit of the lane it is on (m/s), when the network gives one.
     speed_limit: Option<f64>,
+    /// How much longer than the world's car it is, halved (m; [`Scene::excess`]).
+    excess: f64,
 }
 
 /// Whether a SUMO signal state stops traffic: red, or red-yellow before green.
@@ -813,6 +815,7 @@ impl Controller {
                 signal,
                 held_at_red,
                 speed_limit: self.positions.speed_limit(&on),
+                excess: 0.5 * (s.length - self.config.vehicle.length),
                 on_ramp: ramp && x < in_lane_from,
                 ramp_lane: ramp.then_some(lane),
                 path_leader,
@@ -1006,6 +1009,7 @@ impl Controller {
                 if let Some(zips) = &zips {
                     scene.zips = game.members.iter().map(|&(j, _)| zips[j]).collect();
                 }
+                scene.excess = excess_of(game.members.iter().map(|&(j, _)| &cars[j]));
                 let mut nb = Vec::new();
                 find_neighbors(&scene, &mut self.order, &mut nb);
                 if self.sumo_holds_lane_changes() {
@@ -1296,7 +1300,7 @@ fn pass_beside_waiting(cars: &[Car], game: &Game, scene: &Scene, nb: &mut [Neigh
         let (me, leader) = (&cars[game.members[m].0], &cars[game.members[l].0]);
         if leader.is_waiting()
             && me.ramp_lane.is_none()
-            && scene.vehicles[l].x - scene.vehicles[m].x < clearance
+            && scene.vehicles[l].x - scene.vehicles[m].x < clearance + scene.excess(l) + scene.excess(m)
         {
             nb[m].lane_leader = nb[l].lane_leader;
         }
@@ -1355,7 +1359,7 @@ fn ramp_leader_bound(cars: &[Car], j: usize, scene_leader: Option<usize>, rules:
         .min_by(|&a, &b| cars[a].x.total_cmp(&cars[b].x))
         .filter(|&k| Some(k) != scene_leader)?;
     let leader = Neighbor {
-        x: cars[k].x,
+        x: cars[k].x - me.excess - cars[k].excess,
         v: cars[k].v,
         present: 1.0,
     };
@@ -1374,16 +1378,25 @@ fn ego_and_target_lane(cars: &[Car], j: usize, lane_width: f64) -> Scene {
     let mut me = cars[j].vehicle(lane_width);
     me.on_ramp = true;
     me.y = -lane_width;
-    Scene::new(
-        std::iter::once(me)
-            .chain(
-                cars.iter()
-                    .enumerate()
-                    .filter(|&(k, c)| k != j && !c.on_ramp)
-                    .map(|(_, c)| c.vehicle(lane_width)),
-            )
-            .collect(),
-    )
+    let lane = || (cars.iter().enumerate()).filter(|&(k, c)| k != j && !c.on_ramp);
+    Scene {
+        excess: excess_of(std::iter::once(&cars[j]).chain(lane().map(|(_, c)| c))),
+        ..Scene::new(
+            std::iter::once(me)
+                .chain(lane().map(|(_, c)| c.vehicle(lane_width)))
+                .collect(),
+        )
+    }
+}
+
+/// [`Scene::excess`] of `cars` in scene order: empty where all are the world's car length.
+fn excess_of<'a>(cars: impl Iterator<Item = &'a Car>) -> Vec<f64> {
+    let excess: Vec<f64> = cars.map(|c| c.excess).collect();
+    if excess.iter().all(|&e| e == 0.0) {
+        Vec::new()
+    } else {
+        excess
+    }
 }
 
 /// One ego's game: `(index into cars, player slot)` of its members, and which member is the
@@ -1429,6 +1442,7 @@ mod tests {
             signal: None,
             held_at_red: false,
             speed_limit: None,
+            excess: 0.0,
         }
     }
 

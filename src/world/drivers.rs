@@ -189,6 +189,7 @@ mod tests {
             yields: vec![yields; 2],
             gives_way: Vec::new(),
             zips: Vec::new(),
+            excess: Vec::new(),
             v_desired: None,
         };
         let (mut order, mut nb) = (Vec::new(), Vec::new());
@@ -356,6 +357,41 @@ mod tests {
         let late = make_room_bound(&120.0, &19.0, &ramp, &rules);
         assert!((late.reach + 27.273_127).abs() < 1e-5, "{}", late.reach);
         assert!(!makes_room(late.reach, rules.gate.b_safe));
+    }
+
+    #[test]
+    fn gaps_to_a_vehicle_longer_than_the_worlds_car_are_its_bumper_gaps() {
+        // A 16.5 m truck (excess (16.5 - 5) / 2 = 5.75 m). The entry rule: stopped 9 m behind a
+        // ramp vehicle stopped at the ramp's end, a car leaves a 4 m bumper gap and the ramp
+        // vehicle may enter (test below); the truck's rear is 5.75 m further ahead (-1.75 m).
+        // 20 m behind, its bumper gap is 20 - 2.5 - 8.25 = 9.25 m, 2.25 m beyond the clearance.
+        use crate::world::rules::WorldRules;
+        use crate::world::step::applied_action;
+        let config = traffic_config();
+        let truck = |scene: Scene, k: usize| {
+            let mut excess = vec![0.0; scene.len()];
+            excess[k] = 5.75;
+            Scene { excess, ..scene }
+        };
+        let gate = GateRules::new(&config);
+        let behind = |d: f64| Scene::new(vec![at(179.9, 0.0, true), at(179.9 - d, 0.0, false)]);
+        assert!(lane_change_is_safe(&behind(9.0), 0, &gate));
+        assert!(!lane_change_is_safe(&truck(behind(9.0), 1), 0, &gate));
+        assert!(lane_change_is_safe(&truck(behind(20.0), 1), 0, &gate));
+        // The projection: player P at 130 m behind T at 150 m, both at 10 m/s (clearance 7 m,
+        // tau_s 3 s, time gap 1 s). Behind a car the gap one step on is 13 m, v' <= (10 + 13 /
+        // 3) * 0.75 = 10.75, and P keeps its speed; behind the truck it is 7.25 m, v' <= (10 +
+        // 7.25 / 3) * 0.75 = 9.3125, a = -6.875.
+        let lane = Scene::new(vec![at(150.0, 10.0, false), at(130.0, 10.0, false)]);
+        let (mut order, mut nb) = (Vec::new(), Vec::new());
+        find_neighbors(&lane, &mut order, &mut nb);
+        let act = |scene: &Scene| applied_action(&WorldRules::new(&config), true, scene, 1, &nb[1], 0.0);
+        assert_eq!(act(&lane), 0.0);
+        assert!(
+            (act(&truck(lane.clone(), 0)) + 6.875).abs() < 1e-9,
+            "{}",
+            act(&truck(lane.clone(), 0))
+        );
     }
 
     #[test]

@@ -63,7 +63,7 @@
 
 use crate::config::{Config, Entry};
 use crate::num::Num;
-use crate::world::state::{Scene, Vehicle};
+use crate::world::state::Scene;
 
 /// How far before `x_c` a held vehicle stops (m): the bound only approaches its stop line,
 /// so a line at `x_c` itself would be reached by rounding.
@@ -131,7 +131,7 @@ pub fn entry_is_safe(scene: &Scene, i: usize, rules: &GateRules) -> bool {
     let v_stop = (me.v + stop_bound(&me.x, &me.v, rules) * rules.dt).max(0.0);
     let t_latest = 2.0 * rules.dt + v_stop / rules.brake;
     let last = (t_latest.min(rules.horizon) / rules.dt).ceil().max(2.0) as usize;
-    (2..=last).all(|k| safe_at(scene, me, k as f64 * rules.dt, 0.0, rules))
+    (2..=last).all(|k| safe_at(scene, i, k as f64 * rules.dt, 0.0, rules))
 }
 
 /// Whether ramp vehicle `i` of `scene` may change to the target lane this step, as it does
@@ -139,25 +139,28 @@ pub fn entry_is_safe(scene: &Scene, i: usize, rules: &GateRules) -> bool {
 /// its speed, both new gaps absorb their closing speeds braking at `b_safe` with a time to
 /// collision of at least `tau_s` (`rules.horizon`).
 pub fn lane_change_is_safe(scene: &Scene, i: usize, rules: &GateRules) -> bool {
-    safe_at(scene, &scene.vehicles[i], rules.dt, rules.horizon, rules)
+    safe_at(scene, i, rules.dt, rules.horizon, rules)
 }
 
-/// Whether `me`, entering at `t` with its current speed, finds gaps that absorb the closing
-/// speeds with a time to collision of at least `min_ttc` (every target-lane vehicle keeping
-/// its speed until then); with the entry rule (`rules.reaction_time`), gaps of at least a human
-/// driver's secure gap behind and ahead of it too (module docs, "Entry rule").
-fn safe_at(scene: &Scene, me: &Vehicle, t: f64, min_ttc: f64, rules: &GateRules) -> bool {
+/// Whether vehicle `i`, entering at `t` with its current speed, finds gaps that absorb the
+/// closing speeds with a time to collision of at least `min_ttc` (every target-lane vehicle
+/// keeping its speed until then); with the entry rule (`rules.reaction_time`), gaps of at least
+/// a human driver's secure gap behind and ahead of it too (module docs, "Entry rule"). Gaps are
+/// bumper gaps whatever the vehicles' lengths ([`Scene::excess`]).
+fn safe_at(scene: &Scene, i: usize, t: f64, min_ttc: f64, rules: &GateRules) -> bool {
+    let me = &scene.vehicles[i];
     let x_e = me.x + me.v * t;
     let mut leader: Option<(f64, f64)> = None;
     let mut follower: Option<(f64, f64)> = None;
-    for v in scene.vehicles.iter().filter(|v| !v.on_ramp) {
+    for (j, v) in scene.vehicles.iter().enumerate().filter(|(_, v)| !v.on_ramp) {
         let x = v.x + v.v * t;
+        let excess = scene.excess(i) + scene.excess(j);
         if x > x_e {
-            if leader.is_none_or(|(lx, _)| x < lx) {
-                leader = Some((x, v.v));
+            if leader.is_none_or(|(lx, _)| x - excess < lx) {
+                leader = Some((x - excess, v.v));
             }
-        } else if follower.is_none_or(|(fx, _)| x > fx) {
-            follower = Some((x, v.v));
+        } else if follower.is_none_or(|(fx, _)| x + excess > fx) {
+            follower = Some((x + excess, v.v));
         }
     }
     // The gap a driver at `v_back` keeps behind one at `v_front` (none without the rule).

@@ -41,6 +41,10 @@ pub struct Scene {
     /// junction first, room or not. A player counts the first of them ahead of it as its
     /// leader, as SUMO's drivers behind them do. Empty: none (training's world).
     pub zips: Vec<bool>,
+    /// How much longer than the world's car (`vehicle.length`) each vehicle is, halved (m), by
+    /// index: a SUMO truck's rear lies that much further back of its centre, its front that much
+    /// further ahead, and every gap to it is that much shorter. Empty: none (training's world).
+    pub excess: Vec<f64>,
     /// The scene's desired speed `v_d` (m/s): the speed the reward's speed term tracks, and
     /// (scaled by `v_d / reward.v_desired`) the IDM drivers' `v0`. None: the configuration's
     /// `reward.v_desired` (the paper's world). Merge traffic draws it per scene
@@ -57,6 +61,7 @@ impl Scene {
             yields: Vec::new(),
             gives_way: Vec::new(),
             zips: Vec::new(),
+            excess: Vec::new(),
             v_desired: None,
         }
     }
@@ -85,6 +90,11 @@ impl Scene {
     /// Whether ramp vehicle `i` takes its turn at a zipper junction ([`Scene::zips`]).
     pub fn zips(&self, i: usize) -> bool {
         self.zips.get(i).copied().unwrap_or(false)
+    }
+
+    /// How much longer than the world's car vehicle `i` is, halved ([`Scene::excess`]).
+    pub fn excess(&self, i: usize) -> f64 {
+        self.excess.get(i).copied().unwrap_or(0.0)
     }
 
     /// Number of players.

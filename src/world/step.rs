@@ -27,6 +27,19 @@ pub fn neighbor_of(scene: &Scene, who: Option<usize>, me: &Vehicle) -> Neighbor<
     }
 }
 
+/// [`neighbor_of`] vehicle `i` as the gaps between them are: a neighbour longer than the
+/// world's car, or a vehicle `i` that is ([`Scene::excess`]), is moved towards `i` by their
+/// excess, so that the centre distance less the world's clearance is their bumper gap.
+pub fn neighbor_by_gap(scene: &Scene, who: Option<usize>, i: usize) -> Neighbor<f64> {
+    let me = &scene.vehicles[i];
+    let mut n = neighbor_of(scene, who, me);
+    if let Some(j) = who {
+        let excess = scene.excess(i) + scene.excess(j);
+        n.x += if n.x > me.x { -excess } else { excess };
+    }
+    n
+}
+
 /// A vehicle after one step of eq. (1) with acceleration `u` and zero steering; a ramp
 /// vehicle whose `x` reaches `x_c`, or that `merges` early ([`WorldRules::merges_early`]),
 /// joins the target lane (its lateral position follows the lane geometry). One step for the
@@ -108,8 +121,8 @@ pub fn applied_action_with(
     let me = &scene.vehicles[i];
     let mut a = raw;
     if feasibility {
-        let lead = neighbor_of(scene, nb.lane_leader, me);
-        let follow = neighbor_of(scene, nb.lane_follower, me);
+        let lead = neighbor_by_gap(scene, nb.lane_leader, i);
+        let follow = neighbor_by_gap(scene, nb.lane_follower, i);
         let lead_next = settled.leader_next_v.unwrap_or(lead.v);
         let (mut lo, mut hi) =
             feasible_interval_after(&me.x, &me.v, &lead, &lead_next, &follow, &rules.projection());
@@ -127,7 +140,7 @@ pub fn applied_action_with(
         }
         if let Some(j) = zipper_leader(scene, i) {
             let absent = neighbor_of(scene, None, me);
-            let ramp = neighbor_of(scene, Some(j), me);
+            let ramp = neighbor_by_gap(scene, Some(j), i);
             let (_, behind) =
                 feasible_interval_after(&me.x, &me.v, &ramp, &ramp.v, &absent, &rules.projection());
             hi = hi.min(behind);
@@ -135,7 +148,7 @@ pub fn applied_action_with(
         a = project_feasible(&a, &lo, &hi);
         if rules.players_make_room {
             if let Some(j) = player_makes_room_for(&rules.road, scene, i) {
-                let ramp = neighbor_of(scene, Some(j), me);
+                let ramp = neighbor_by_gap(scene, Some(j), i);
                 let room = make_room_bound(&me.x, &me.v, &ramp, rules);
                 if makes_room(room.reach, rules.gate.b_safe) {
                     a = a.min(room.bound);

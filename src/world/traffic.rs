@@ -231,6 +231,7 @@ pub fn sample_traffic_scene(config: &Config, traffic: &TrafficConfig, seed: u64,
         yields,
         gives_way: Vec::new(),
         zips: Vec::new(),
+        excess: Vec::new(),
         v_desired,
     }
 }
