@@ -115,6 +115,16 @@ pub struct ManifestEntry {
     pub derived_type: Option<String>,
 }
 
+/// What a command says when the base file at `base` defined no controllable type and the
+/// generated files (`manifest`) define one ([`ManifestEntry::derived_type`]).
+pub fn derived_type_note(base: &Path, manifest: &[ManifestEntry]) -> Option<String> {
+    let ctrl = manifest.first()?.derived_type.as_ref()?;
+    Some(format!(
+        "{} defines no controllable type: `{ctrl}` is added as a copy of its first vType",
+        base.display()
+    ))
+}
+
 /// Errors of route generation.
 #[derive(Debug, thiserror::Error)]
 pub enum RoutesError {

@@ -3,7 +3,7 @@
 use crate::cli::common::{print, usage};
 use anyhow::Result;
 use clap::Args;
-use mpgdrive::batch::routes::{DemandSpec, Streams, generate};
+use mpgdrive::batch::routes::{DemandSpec, Streams, derived_type_note, generate};
 use mpgdrive::sumo::MergeGeometry;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -112,11 +112,8 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         streams: args.streams.into(),
     };
     let manifest = generate(&args.base, &merges, &spec, &args.out)?;
-    if let Some(ctrl) = manifest.first().and_then(|m| m.derived_type.as_ref()) {
-        eprintln!(
-            "routes: {} defines no controllable type: `{ctrl}` is added as a copy of its first vType",
-            args.base.display()
-        );
+    if let Some(note) = derived_type_note(&args.base, &manifest) {
+        eprintln!("routes: {note}");
     }
     for m in &manifest {
         print(&format!(

@@ -11,7 +11,9 @@ use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::batch::capacity::{self, SweepRun};
 use mpgdrive::batch::penetration::{self, Conflicts, Spread, StudyRun, Trips};
-use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, Streams, flows_by_stream, generate};
+use mpgdrive::batch::routes::{
+    DemandSpec, ManifestEntry, Streams, derived_type_note, flows_by_stream, generate,
+};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, Combo, run_batch};
 use mpgdrive::config::Config;
 use mpgdrive::policy::Mode;
@@ -140,13 +142,8 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             streams,
         };
         let manifest = generate(&base, &merges, &spec, &dir.join("routes"))?;
-        if let Some(ctrl) = manifest.first().and_then(|m| m.derived_type.as_ref())
-            && !noted.replace(true)
-        {
-            eprintln!(
-                "study: {} defines no controllable type: `{ctrl}` is added as a copy of its first vType",
-                base.display()
-            );
+        if let Some(note) = derived_type_note(&base, &manifest).filter(|_| !noted.replace(true)) {
+            eprintln!("study: {note}");
         }
         let mut todo = Vec::new();
         for m in &manifest {

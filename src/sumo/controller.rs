@@ -1330,10 +1330,10 @@ fn gives_way(cars: &[Car], control_from: f64, is_ego: impl Fn(&str) -> bool) -> 
 /// Which of `cars` take their turn at a zipper junction ([`Scene::zips`],
 /// [`LanePositions::zipper_entry`]): SUMO's own ramp drivers (not `is_ego`) with no ego ahead
 /// of them on the ramp, who go when they reach the junction first. A player the policy drives
-/// does not merge by SUMO's zipper rule: on a zipper junction (`net build`-free, netconvert's
-/// `type="zipper"`), 30% of the vehicles playing, one drove on beside SUMO's driver ahead of it
-/// and they collided in the junction. Ramp vehicles queued behind an ego wait for it, which
-/// enters by the entry rule.
+/// does not merge by SUMO's zipper rule: with two ramps joining a 30 m/s road at zipper nodes
+/// (netconvert's `type="zipper"`) and 30% of the vehicles playing, one drove on beside SUMO's
+/// driver ahead of it and they collided in the junction. Ramp vehicles queued behind an ego
+/// wait for it, which enters by the entry rule.
 fn zips(cars: &[Car], is_ego: impl Fn(&str) -> bool) -> Vec<bool> {
     cars.iter()
         .map(|c| c.on_ramp && !is_ego(&c.id) && !cars.iter().any(|h| h.on_ramp && h.x > c.x && is_ego(&h.id)))
