@@ -88,6 +88,41 @@ fn netconvert(dir: &Path, nodes: &str, edges: &str, links: &[(&str, u32, &str, u
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
+/// The game with 30% of the vehicles controllable, 600 s of SUMO seed 1 in `dir`: `net inspect`
+/// with `inspect` (its arguments after the network), `routes` from the base file `base` at
+/// demand `scale`, then [`drive`]: the run.
+fn game_at_30_percent(dir: &Path, base: &str, scale: f64, inspect: &[&str]) -> serde_json::Value {
+    let stem = base.trim_end_matches(".rou.xml");
+    std::fs::write(
+        dir.join("merge.sumocfg"),
+        format!(
+            r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/{stem}_d{scale:.2}_m0.30_s1.rou.xml"/></input>
+            <time><step-length value="0.1"/></time></configuration>"#
+        ),
+    )
+    .unwrap();
+    let out = mpgdrive_in(
+        dir,
+        &[&["net", "inspect", "net.net.xml", "--out", "merge.toml"], inspect].concat(),
+    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let shares = [
+        "--controllable-share",
+        "0.3",
+        "--mainline-controllable-share",
+        "0.3",
+    ];
+    let scale = scale.to_string();
+    let routes = [
+        &["routes", "--base", base, "--scales", &scale][..],
+        &shares,
+        &["--seeds", "1", "--duration", "600", "--out", "r"],
+    ];
+    let out = mpgdrive_in(dir, &routes.concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    drive(dir, "mpg", &["--end", "600", "--seed", "1"]).remove(0)
+}
+
 /// `mpgdrive net inspect` in `dir`, writing `merge.toml` (its `players` set to `players`),
 /// then [`drive`].
 fn inspect_and_drive(dir: &Path, players: &str, controllers: &str, args: &[&str]) -> Vec<serde_json::Value> {
@@ -471,33 +506,9 @@ fn at_zipper_junctions_players_let_sumos_drivers_ahead_take_their_turn() {
         <flow id="o1" type="car" begin="0" end="600" vehsPerHour="250" from="on1" to="e3" departSpeed="max"/>
         <flow id="o2" type="car" begin="0" end="600" vehsPerHour="250" from="on2" to="e3" departSpeed="max"/></routes>"#,
     );
-    write(
-        "merge.sumocfg",
-        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/z_d1.00_m0.30_s1.rou.xml"/></input>
-        <time><step-length value="0.1"/></time></configuration>"#,
-    );
-    let out = mpgdrive_in(&dir, &["net", "inspect", "net.net.xml", "--out", "merge.toml"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let routes = [
-        "routes",
-        "--base",
-        "z.rou.xml",
-        "--controllable-share",
-        "0.3",
-        "--mainline-controllable-share",
-        "0.3",
-        "--seeds",
-        "1",
-        "--duration",
-        "600",
-        "--out",
-        "r",
-    ];
-    let out = mpgdrive_in(&dir, &routes);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     // SUMO seed 1: a player drove on beside SUMO's driver just ahead of it at the first zipper
     // (t = 486 s) and they collided in the junction, before players followed such drivers.
-    let run = &drive(&dir, "mpg", &["--end", "600", "--seed", "1"])[0];
+    let run = &game_at_30_percent(&dir, "z.rou.xml", 1.0, &[]);
     assert!(finished_egos(run) >= 15, "{} egos finished", finished_egos(run));
     assert_eq!(controlled_collisions(run), 0);
 }
@@ -535,46 +546,9 @@ fn gaps_to_trucks_are_their_bumper_gaps() {
         <flow id="onr" type="car" begin="0" end="600" vehsPerHour="500" from="rampA" to="out" departLane="best" departSpeed="max"/>
         <flow id="ontrk" type="truck" begin="0" end="600" vehsPerHour="100" from="rampA" to="out" departLane="best" departSpeed="max"/></routes>"#,
     );
-    write(
-        "merge.sumocfg",
-        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/t_d1.20_m0.30_s1.rou.xml"/></input>
-        <time><step-length value="0.1"/></time></configuration>"#,
-    );
-    let out = mpgdrive_in(
-        &dir,
-        &[
-            "net",
-            "inspect",
-            "net.net.xml",
-            "--merge",
-            "1",
-            "--out",
-            "merge.toml",
-        ],
-    );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let routes = [
-        "routes",
-        "--base",
-        "t.rou.xml",
-        "--scales",
-        "1.2",
-        "--controllable-share",
-        "0.3",
-        "--mainline-controllable-share",
-        "0.3",
-        "--seeds",
-        "1",
-        "--duration",
-        "600",
-        "--out",
-        "r",
-    ];
-    let out = mpgdrive_in(&dir, &routes);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     // SUMO seed 1: a driven car ran into a truck's rear, and a truck into an ego that entered
     // in front of it, while the world took every vehicle for a 5 m car.
-    let run = &drive(&dir, "mpg", &["--end", "600", "--seed", "1"])[0];
+    let run = &game_at_30_percent(&dir, "t.rou.xml", 1.2, &["--merge", "1"]);
     assert!(finished_egos(run) >= 20, "{} egos finished", finished_egos(run));
     assert_eq!(controlled_collisions(run), 0);
 }

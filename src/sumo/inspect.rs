@@ -436,55 +436,41 @@ mod tests {
     }
 
     #[test]
-    fn an_acceleration_lane_over_two_edges_begins_on_the_first() {
-        // Ramp r_0 (40 m) -> b_0 (100 m) -> c_0 (60 m, ends); freeway a_0 (200 m) -> b_1 ->
-        // c_1 -> d_0 (no junction lanes).
-        let text = r#"<net>
-            <edge id="a"><lane id="a_0" index="0" length="200.00"/></edge>
-            <edge id="r"><lane id="r_0" index="0" length="40.00"/></edge>
-            <edge id="b"><lane id="b_0" index="0" length="100.00"/><lane id="b_1" index="1" length="100.00"/></edge>
-            <edge id="c"><lane id="c_0" index="0" length="60.00"/><lane id="c_1" index="1" length="60.00"/></edge>
-            <edge id="d"><lane id="d_0" index="0" length="300.00"/></edge>
-            <connection from="a" to="b" fromLane="0" toLane="1"/>
-            <connection from="r" to="b" fromLane="0" toLane="0"/>
-            <connection from="b" to="c" fromLane="0" toLane="0"/>
-            <connection from="b" to="c" fromLane="1" toLane="1"/>
-            <connection from="c" to="d" fromLane="1" toLane="0"/>
-            </net>"#;
-        let found = merges(text);
-        assert_eq!(found.len(), 1);
-        let m = &found[0];
-        assert_eq!(m.form, MergeForm::AccelerationLane);
-        assert_eq!(m.ramp_lanes, ["r_0", "b_0", "c_0"]);
-        assert_eq!(m.target_lanes, ["a_0", "b_1", "c_1", "d_0"]);
-        // b_0 runs beside b_1 from 200 m, c_0 beside c_1 to 360 m; the ramp starts at 160 m.
-        assert_eq!((m.ramp_start, m.lane_start, m.lane_end), (160.0, 200.0, 360.0));
-    }
-
-    #[test]
-    fn a_ramp_that_joins_on_the_inner_side_is_an_acceleration_lane_beside_the_lane_to_its_right() {
-        // The mirror of the two-edge case above: ramp r_0 -> b_1 -> c_1 (ends) on the freeway's
-        // inner side; freeway a_0 -> b_0 -> c_0 -> d_0.
-        let text = r#"<net>
-            <edge id="a"><lane id="a_0" index="0" length="200.00"/></edge>
-            <edge id="r"><lane id="r_0" index="0" length="40.00"/></edge>
-            <edge id="b"><lane id="b_0" index="0" length="100.00"/><lane id="b_1" index="1" length="100.00"/></edge>
-            <edge id="c"><lane id="c_0" index="0" length="60.00"/><lane id="c_1" index="1" length="60.00"/></edge>
-            <edge id="d"><lane id="d_0" index="0" length="300.00"/></edge>
-            <connection from="a" to="b" fromLane="0" toLane="0"/>
-            <connection from="r" to="b" fromLane="0" toLane="1"/>
-            <connection from="b" to="c" fromLane="0" toLane="0"/>
-            <connection from="b" to="c" fromLane="1" toLane="1"/>
-            <connection from="c" to="d" fromLane="0" toLane="0"/>
-            </net>"#;
-        let found = merges(text);
-        assert_eq!(found.len(), 1);
-        let m = &found[0];
-        assert_eq!(m.form, MergeForm::AccelerationLane);
-        assert_eq!(m.ramp_lanes, ["r_0", "b_1", "c_1"]);
-        assert_eq!(m.target_lanes, ["a_0", "b_0", "c_0", "d_0"]);
-        assert_eq!(m.target_lane, "c_0");
-        assert_eq!((m.ramp_start, m.lane_start, m.lane_end), (160.0, 200.0, 360.0));
+    fn an_acceleration_lane_over_two_edges_begins_on_the_first_on_either_side() {
+        // Ramp r_0 (40 m) -> b_R (100 m) -> c_R (60 m, ends); freeway a_0 (200 m) -> b_F -> c_F
+        // -> d_0 (no junction lanes). The ramp joins on the outer side (R = 0, F = 1) or on the
+        // inner side (R = 1, F = 0), where the lane beside it is the one to its right.
+        for (r, f) in [(0, 1), (1, 0)] {
+            let text = format!(
+                r#"<net>
+                <edge id="a"><lane id="a_0" index="0" length="200.00"/></edge>
+                <edge id="r"><lane id="r_0" index="0" length="40.00"/></edge>
+                <edge id="b"><lane id="b_0" index="0" length="100.00"/><lane id="b_1" index="1" length="100.00"/></edge>
+                <edge id="c"><lane id="c_0" index="0" length="60.00"/><lane id="c_1" index="1" length="60.00"/></edge>
+                <edge id="d"><lane id="d_0" index="0" length="300.00"/></edge>
+                <connection from="a" to="b" fromLane="0" toLane="{f}"/>
+                <connection from="r" to="b" fromLane="0" toLane="{r}"/>
+                <connection from="b" to="c" fromLane="0" toLane="0"/>
+                <connection from="b" to="c" fromLane="1" toLane="1"/>
+                <connection from="c" to="d" fromLane="{f}" toLane="0"/>
+                </net>"#
+            );
+            let found = merges(&text);
+            assert_eq!(found.len(), 1);
+            let m = &found[0];
+            assert_eq!(m.form, MergeForm::AccelerationLane);
+            assert_eq!(
+                m.ramp_lanes,
+                ["r_0".to_owned(), format!("b_{r}"), format!("c_{r}")]
+            );
+            assert_eq!(
+                m.target_lanes,
+                ["a_0".to_owned(), format!("b_{f}"), format!("c_{f}"), "d_0".into()]
+            );
+            assert_eq!(m.target_lane, format!("c_{f}"));
+            // b_R runs beside b_F from 200 m, c_R beside c_F to 360 m; the ramp starts at 160 m.
+            assert_eq!((m.ramp_start, m.lane_start, m.lane_end), (160.0, 200.0, 360.0));
+        }
     }
 
     #[test]
