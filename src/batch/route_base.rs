@@ -128,6 +128,9 @@ pub(super) struct Base {
     /// The controllable type the file did not define, added to `verbatim` as a copy of
     /// `human` (SUMO's default car without one).
     pub(super) derived_type: Option<String>,
+    /// The elements the generated files do not carry over (persons, containers, ...), each as
+    /// its count and tag: `3 <person>`.
+    pub(super) left_out: Vec<String>,
 }
 
 pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base, RoutesError> {
@@ -153,6 +156,7 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
     let mut human_copy = None;
     let mut flows = Vec::new();
     let mut explicit = Vec::new();
+    let mut left_out: Vec<(String, usize)> = Vec::new();
     for node in doc.root_element().children().filter(|n| n.is_element()) {
         let attr = |k: &str| node.attribute(k).map(str::to_owned);
         match node.tag_name().name() {
@@ -302,7 +306,10 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
                     id,
                 });
             }
-            _ => {}
+            other => match left_out.iter_mut().find(|(tag, _)| tag == other) {
+                Some((_, n)) => *n += 1,
+                None => left_out.push((other.to_owned(), 1)),
+            },
         }
     }
     if flows.is_empty() && explicit.is_empty() {
@@ -326,6 +333,7 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
         mixes,
         human,
         derived_type,
+        left_out: left_out.iter().map(|(tag, n)| format!("{n} <{tag}>")).collect(),
     })
 }
 
@@ -469,5 +477,11 @@ mod tests {
         // A file that defines one of the controllable types keeps its own types.
         let (derived, verbatim) = base("<vType id=\"veh_passenger\"/><vType id=\"av\" accel=\"3\"/>");
         assert_eq!((derived, verbatim.len()), (None, 2));
+        // What the generator does not write is counted by tag.
+        let text = "<routes><person id=\"p\" depart=\"0\"><walk edges=\"r\"/></person><vType id=\"car\"/>\
+                    <person id=\"q\" depart=\"1\"/><container id=\"c\" depart=\"2\"/>\
+                    <trip id=\"t\" type=\"car\" depart=\"0\" from=\"r\" to=\"acc\"/></routes>";
+        let base = parse_base(Path::new("t.rou.xml"), text, std::slice::from_ref(&merge)).unwrap();
+        assert_eq!(base.left_out, ["2 <person>", "1 <container>"]);
     }
 }

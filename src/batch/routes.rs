@@ -113,16 +113,30 @@ pub struct ManifestEntry {
     /// of the base's first vType (SUMO's default car without one).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub derived_type: Option<String>,
+    /// Elements of the base file this file does not carry over, each as its count and tag
+    /// (`3 <person>`): the generator writes vehicle types, routes and vehicles only.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub left_out: Vec<String>,
 }
 
-/// What a command says when the base file at `base` defined no controllable type and the
-/// generated files (`manifest`) define one ([`ManifestEntry::derived_type`]).
-pub fn derived_type_note(base: &Path, manifest: &[ManifestEntry]) -> Option<String> {
-    let ctrl = manifest.first()?.derived_type.as_ref()?;
-    Some(format!(
-        "{} defines no controllable type: `{ctrl}` is added as a copy of its first vType",
-        base.display()
-    ))
+/// What a command says about how the generated files (`manifest`) differ from the base file
+/// at `base` beyond the demand: a controllable type it did not define
+/// ([`ManifestEntry::derived_type`]), and elements they leave out ([`ManifestEntry::left_out`]).
+pub fn base_notes(base: &Path, manifest: &[ManifestEntry]) -> Vec<String> {
+    let Some(first) = manifest.first() else {
+        return Vec::new();
+    };
+    let base = base.display();
+    let derived = (first.derived_type.as_ref()).map(|ctrl| {
+        format!("{base} defines no controllable type: `{ctrl}` is added as a copy of its first vType")
+    });
+    let left_out = (!first.left_out.is_empty()).then(|| {
+        format!(
+            "{base}: left out of the generated files: {}",
+            first.left_out.join(", ")
+        )
+    });
+    derived.into_iter().chain(left_out).collect()
 }
 
 /// Errors of route generation.
@@ -441,6 +455,7 @@ pub fn generate(
                 streams: spec.streams,
                 vehicles: vehicles.len(),
                 derived_type: base.derived_type.clone(),
+                left_out: base.left_out.clone(),
             });
         }
     }

@@ -3,7 +3,7 @@
 use crate::cli::common::{print, usage};
 use anyhow::Result;
 use clap::Args;
-use mpgdrive::batch::routes::{DemandSpec, Streams, derived_type_note, generate};
+use mpgdrive::batch::routes::{DemandSpec, Streams, base_notes, generate};
 use mpgdrive::sumo::MergeGeometry;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -112,7 +112,7 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         streams: args.streams.into(),
     };
     let manifest = generate(&args.base, &merges, &spec, &args.out)?;
-    if let Some(note) = derived_type_note(&args.base, &manifest) {
+    for note in base_notes(&args.base, &manifest) {
         eprintln!("routes: {note}");
     }
     for m in &manifest {

@@ -11,9 +11,7 @@ use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::batch::capacity::{self, SweepRun};
 use mpgdrive::batch::penetration::{self, Conflicts, Spread, StudyRun, Trips};
-use mpgdrive::batch::routes::{
-    DemandSpec, ManifestEntry, Streams, derived_type_note, flows_by_stream, generate,
-};
+use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, Streams, base_notes, flows_by_stream, generate};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, Combo, run_batch};
 use mpgdrive::config::Config;
 use mpgdrive::policy::Mode;
@@ -142,8 +140,10 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             streams,
         };
         let manifest = generate(&base, &merges, &spec, &dir.join("routes"))?;
-        if let Some(note) = derived_type_note(&base, &manifest).filter(|_| !noted.replace(true)) {
-            eprintln!("study: {note}");
+        if !noted.replace(true) {
+            for note in base_notes(&base, &manifest) {
+                eprintln!("study: {note}");
+            }
         }
         let mut todo = Vec::new();
         for m in &manifest {
