@@ -1,6 +1,6 @@
 //! `mpgdrive routes` as a library: Poisson demand from the I-80 base file, shares and seeds.
 
-use mpgdrive::batch::routes::{DemandSpec, Streams, flows_by_stream, generate};
+use mpgdrive::batch::routes::{DemandSpec, Streams, combined_route_files, flows_by_stream, generate};
 use mpgdrive::sumo::MergeGeometry;
 use std::path::{Path, PathBuf};
 
@@ -578,4 +578,52 @@ fn flows_with_a_route_in_them_poisson_periods_and_sumos_default_interval_are_gen
     std::fs::write(&base, text.replace("exp(2)", "exp(fast)")).unwrap();
     let err = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap_err();
     assert!(err.to_string().contains("period=\"exp(fast)\""), "{err}");
+}
+
+#[test]
+fn route_files_that_split_types_and_flows_are_one_demand() {
+    // The bundled I-80 routes split in two, as configurations with a types file and a flows file
+    // do: the types alone have nothing to scale; both together give the same vehicles as the
+    // file they came from.
+    let (base, geometry) = i80();
+    let out = out_dir("split");
+    let text = std::fs::read_to_string(&base).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let (mut types, mut rest) = (String::new(), String::new());
+    for node in doc.root_element().children().filter(|n| n.is_element()) {
+        let part = if node.tag_name().name().starts_with("vType") {
+            &mut types
+        } else {
+            &mut rest
+        };
+        *part += &text[node.range()];
+    }
+    std::fs::create_dir_all(&out).unwrap();
+    let (a, b) = (out.join("types.rou.xml"), out.join("flows.rou.xml"));
+    std::fs::write(&a, format!("<routes>{types}</routes>")).unwrap();
+    std::fs::write(&b, format!("<routes>\n<!-- flows -->\n{rest}</routes>")).unwrap();
+    let spec = DemandSpec {
+        scales: vec![1.0],
+        ramp_share: None,
+        controllable_shares: vec![0.3],
+        mainline_share: Some(0.3),
+        seeds: vec![4],
+        duration: 300.0,
+        streams: Streams::All,
+    };
+    let merges = std::slice::from_ref(&geometry);
+    let err = generate(&a, merges, &spec, &out).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("no <flow>, <vehicle> or <trip> to scale"),
+        "{err}"
+    );
+    let both = out.join("both.rou.xml");
+    std::fs::write(&both, combined_route_files(&[a, b]).unwrap()).unwrap();
+    let whole = generate(&base, merges, &spec, &out).unwrap();
+    let split = generate(&both, merges, &spec, &out).unwrap();
+    assert_eq!(
+        vehicles(&out.join(&whole[0].file)),
+        vehicles(&out.join(&split[0].file))
+    );
 }

@@ -163,6 +163,30 @@ pub enum RoutesError {
     Invalid(String),
 }
 
+/// One route file of the route files `paths` (a SUMO configuration's, in their order): the
+/// elements under each file's root, in turn, under one `<routes>`. A configuration that keeps
+/// its vehicle types in one file and its flows in another is one demand.
+pub fn combined_route_files(paths: &[PathBuf]) -> Result<String, RoutesError> {
+    let mut out = String::from("<routes>\n");
+    for path in paths {
+        let text = crate::sumo::inputs::read_sumo_file(path).map_err(|source| RoutesError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        let doc = roxmltree::Document::parse(&text).map_err(|e| RoutesError::Base {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        let root = doc.root_element();
+        if let (Some(first), Some(last)) = (root.first_child(), root.last_child()) {
+            out += &text[first.range().start..last.range().end];
+            out.push('\n');
+        }
+    }
+    out += "</routes>\n";
+    Ok(out)
+}
+
 /// How many of the flows and explicit vehicles of the base file at `base_path` drive along a
 /// ramp of `merges`, and how many do not: which [`Streams`] it can give.
 pub fn flows_by_stream(base_path: &Path, merges: &[MergeGeometry]) -> Result<(usize, usize), RoutesError> {

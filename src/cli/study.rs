@@ -11,7 +11,9 @@ use clap::Args;
 use mpgdrive::atomic;
 use mpgdrive::batch::capacity::{self, SweepRun};
 use mpgdrive::batch::penetration::{self, Conflicts, Spread, StudyRun, Trips};
-use mpgdrive::batch::routes::{DemandSpec, ManifestEntry, Streams, base_notes, flows_by_stream, generate};
+use mpgdrive::batch::routes::{
+    DemandSpec, ManifestEntry, Streams, base_notes, combined_route_files, flows_by_stream, generate,
+};
 use mpgdrive::batch::runner::{BatchEnd, BatchSettings, Combo, run_batch};
 use mpgdrive::config::Config;
 use mpgdrive::policy::Mode;
@@ -28,7 +30,7 @@ pub struct StudyArgs {
     /// Configuration file (TOML) passed to every run (as cosim's).
     #[arg(long, default_value = "configs/traffic.toml")]
     config: PathBuf,
-    /// SUMO configuration of the network; its first route file is the base demand.
+    /// SUMO configuration of the network; its route files, taken together, are the base demand.
     #[arg(long, default_value = "sumo_nets/i80_merge/i80.sumocfg")]
     sumocfg: PathBuf,
     /// Merge geometry (default: merge.toml beside the .sumocfg). The study sets its `players`
@@ -93,13 +95,20 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
     for geometry in &merges {
         mpgdrive::sumo::inputs::check_geometry(geometry, &merge_path, &files.net)?;
     }
-    let base = files.routes.first().cloned().ok_or_else(|| {
+    let mut base = files.routes.first().cloned().ok_or_else(|| {
         usage(format!(
             "--sumocfg {}: names no route file",
             args.sumocfg.display()
         ))
     })?;
     std::fs::create_dir_all(&args.out).with_context(|| format!("{}", args.out.display()))?;
+    // Several route files (vehicle types in one, flows in another) are one demand: the base is
+    // all of them, in --out.
+    if files.routes.len() > 1 {
+        base = args.out.join("base.rou.xml");
+        atomic::write(&base, combined_route_files(&files.routes)?)
+            .with_context(|| format!("{}", base.display()))?;
+    }
     for g in &mut merges {
         g.players = PlayerControl::Controllable;
     }
