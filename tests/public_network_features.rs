@@ -430,6 +430,26 @@ fn what_osm_web_wizard_writes_runs_as_it_is() {
     .unwrap();
     let out = mpgdrive_in(&dir, &["net", "inspect", "osm.net.xml.gz", "--out", "merge.toml"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // As they are, its trips hold no vehicle the policy may drive, and cosim says so.
+    let out = mpgdrive_in(
+        &dir,
+        &[
+            "cosim",
+            "--sumocfg",
+            "osm.sumocfg",
+            "--end",
+            "5",
+            "--controllers",
+            "mpg",
+            "--out",
+            "as_is",
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && stderr.contains("the policy drives no vehicle"),
+        "{stderr}"
+    );
     let out = mpgdrive_in(
         &dir,
         &[

@@ -189,6 +189,16 @@ mod with_sumo {
                 config.sim.dt
             );
         }
+        let driven = geometries.iter().flat_map(|g| &g.controllable_types);
+        let policy_drives = args.controllers.iter().any(|&k| k != ControllerKind::Sumo);
+        if policy_drives && !driven.clone().any(|t| facts.types.contains(t)) {
+            let names: Vec<&str> = driven.map(String::as_str).collect();
+            eprintln!(
+                "cosim: no vehicle type of the route files is one of merge.toml's controllable_types ({}): \
+                 the policy drives no vehicle (`mpgdrive routes --controllable-share` makes route files with some)",
+                names.join(", ")
+            );
+        }
         if !facts.ssm {
             eprintln!(
                 "cosim: {} equips no vehicle with the SSM device: every vehicle gets one (the conflict metrics need it)",

@@ -381,14 +381,20 @@ pub fn check_routes(files: &[PathBuf], net: Option<&Path>) -> Result<RouteFacts,
         .filter(|g: &f64| g.is_finite())
         .reduce(f64::max)
         .unwrap_or(SUMO_MIN_GAP);
-    Ok(RouteFacts { ssm, min_gap })
+    let mut types: Vec<String> = all()
+        .filter(|n| n.has_tag_name("vType") || n.has_tag_name("vTypeDistribution"))
+        .filter_map(|n| n.attribute("id").map(str::to_owned))
+        .collect();
+    types.sort();
+    types.dedup();
+    Ok(RouteFacts { ssm, min_gap, types })
 }
 
 /// SUMO's `minGap` of a vehicle type that sets none (m).
 pub const SUMO_MIN_GAP: f64 = 2.5;
 
 /// What route (and additional) files tell the co-simulation.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct RouteFacts {
     /// A file equips vehicles with the SSM device (a `has.ssm.device` parameter set to true).
     pub ssm: bool,
@@ -396,6 +402,8 @@ pub struct RouteFacts {
     /// sets none, and when they define none) (m): SUMO counts a bumper gap below it as a
     /// collision unless `collision.mingap-factor` is 0.
     pub min_gap: f64,
+    /// The vehicle types and type distributions they define, sorted.
+    pub types: Vec<String>,
 }
 
 /// Every check before a co-simulation, given the configuration's files: each merge's geometry
