@@ -214,7 +214,7 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
         "{share}"
     );
     // A file without a controllable vType takes a mainline share with `ctrl` as a copy of its
-    // first vType.
+    // first passenger car's vType.
     let bare = out.join("bare.rou.xml");
     std::fs::write(
         &bare,

@@ -469,7 +469,7 @@ fn what_osm_web_wizard_writes_runs_as_it_is() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(
-        stderr.contains("`ctrl` is added as a copy of its first vType"),
+        stderr.contains("`ctrl` is added as a copy of its first passenger car's vType"),
         "{stderr}"
     );
     // Every ramp trip drawn controllable, and `cosim --json` prints its results alone.

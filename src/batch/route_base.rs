@@ -125,8 +125,8 @@ pub(super) struct Base {
     /// The first vType (outside a distribution) not of a controllable type: the type a ramp
     /// flow of a plain controllable type takes where a controllable share leaves it to SUMO.
     pub(super) human: Option<String>,
-    /// The controllable type the file did not define, added to `verbatim` as a copy of
-    /// `human` (SUMO's default car without one).
+    /// The controllable type the file did not define, added to `verbatim` as a copy of its
+    /// first passenger car's vType (SUMO's default car without one).
     pub(super) derived_type: Option<String>,
     /// The elements the generated files do not carry over (persons, containers, ...), each as
     /// its count and tag: `3 <person>`.
@@ -152,8 +152,9 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
     let mut routes = Vec::new();
     let mut mixes = Vec::new();
     let mut human = None;
-    // The first such vType with its id replaced by the first controllable type's.
-    let mut human_copy = None;
+    // The first vType of a passenger car (SUMO's class `passenger`, its default) not of a
+    // controllable type, its id replaced by the first controllable type's.
+    let mut car_copy = None;
     let mut flows = Vec::new();
     let mut explicit = Vec::new();
     let mut left_out: Vec<(String, usize)> = Vec::new();
@@ -162,17 +163,19 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
         match node.tag_name().name() {
             "vType" => {
                 verbatim.push(text[node.range()].to_owned());
+                let id = node.attributes().find(|a| a.name() == "id");
+                let other = id.filter(|id| !controllable.contains(&id.value()));
                 if human.is_none() {
-                    human = attr("id").filter(|id| !controllable.contains(&id.as_str()));
-                    let id = node.attributes().find(|a| a.name() == "id");
-                    if let (Some(_), Some(id), Some(ctrl)) = (&human, id, controllable.first()) {
-                        let (element, value) = (node.range(), id.range_value());
-                        human_copy = Some(format!(
-                            "{}{ctrl}{}",
-                            &text[element.start..value.start],
-                            &text[value.end..element.end]
-                        ));
-                    }
+                    human = other.map(|id| id.value().to_owned());
+                }
+                let car = node.attribute("vClass").is_none_or(|c| c == "passenger");
+                if let (None, Some(id), Some(ctrl), true) = (&car_copy, other, controllable.first(), car) {
+                    let (element, value) = (node.range(), id.range_value());
+                    car_copy = Some(format!(
+                        "{}{ctrl}{}",
+                        &text[element.start..value.start],
+                        &text[value.end..element.end]
+                    ));
                 }
             }
             "vTypeDistribution" => {
@@ -316,11 +319,12 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
         return Err(bad("no <flow>, <vehicle> or <trip> to scale".into()));
     }
     // A file that defines no controllable type (osmWebWizard's trips, randomTrips without
-    // types) gets one: the same car as its first vType, or SUMO's default car.
+    // types) gets one: the same car as its first passenger car's vType, or SUMO's default car.
+    // The policies' world is one of passenger cars.
     let defined = |c: &str| verbatim.iter().any(|v| v.contains(&format!("id=\"{c}\"")));
     let derived_type = match controllable.first() {
         Some(ctrl) if !controllable.iter().any(|c| defined(c)) => {
-            let copy = human_copy.unwrap_or_else(|| format!("<vType id=\"{ctrl}\"/>"));
+            let copy = car_copy.unwrap_or_else(|| format!("<vType id=\"{ctrl}\"/>"));
             verbatim.push(copy);
             Some(ctrl.to_string())
         }
@@ -472,8 +476,11 @@ mod tests {
             verbatim.last().unwrap(),
             "<vType id='ctrl' vClass=\"passenger\"><param key=\"k\" value=\"veh_passenger\"/></vType>"
         );
-        // No vType at all: SUMO's default car.
+        // No vType at all: SUMO's default car; trucks first: the first car after them.
         assert_eq!(base("").1, ["<vType id=\"ctrl\"/>"]);
+        let (_, verbatim) =
+            base("<vType id=\"lorry\" vClass=\"truck\"/><vType id=\"veh_passenger\" accel=\"2\"/>");
+        assert_eq!(verbatim.last().unwrap(), "<vType id=\"ctrl\" accel=\"2\"/>");
         // A file that defines one of the controllable types keeps its own types.
         let (derived, verbatim) = base("<vType id=\"veh_passenger\"/><vType id=\"av\" accel=\"3\"/>");
         assert_eq!((derived, verbatim.len()), (None, 2));

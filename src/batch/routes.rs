@@ -110,7 +110,7 @@ pub struct ManifestEntry {
     /// Vehicles written.
     pub vehicles: usize,
     /// The controllable type the base file does not define, which this file defines as a copy
-    /// of the base's first vType (SUMO's default car without one).
+    /// of the base's first passenger car's vType (SUMO's default car without one).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub derived_type: Option<String>,
     /// Elements of the base file this file does not carry over, each as its count and tag
@@ -128,7 +128,7 @@ pub fn base_notes(base: &Path, manifest: &[ManifestEntry]) -> Vec<String> {
     };
     let base = base.display();
     let derived = (first.derived_type.as_ref()).map(|ctrl| {
-        format!("{base} defines no controllable type: `{ctrl}` is added as a copy of its first vType")
+        format!("{base} defines no controllable type: `{ctrl}` is added as a copy of its first passenger car's vType")
     });
     let left_out = (!first.left_out.is_empty()).then(|| {
         format!(
