@@ -63,6 +63,12 @@ fn mpgdrive_in(dir: &Path, args: &[&str]) -> std::process::Output {
     bin().current_dir(dir).args(args).output().unwrap()
 }
 
+/// That at least `egos` of a run's egos finished and no vehicle the policy drove collided.
+fn drove_safely(run: &serde_json::Value, egos: usize) {
+    assert!(finished_egos(run) >= egos, "{} egos finished", finished_egos(run));
+    assert_eq!(controlled_collisions(run), 0);
+}
+
 /// `dir/net.net.xml`, built by netconvert from plain `nodes` and `edges` and, unless empty,
 /// the connections `links` (from edge, lane, to edge, lane).
 fn netconvert(dir: &Path, nodes: &str, edges: &str, links: &[(&str, u32, &str, u32)]) {
@@ -187,8 +193,7 @@ fn sidewalks_and_bicycle_lanes_are_no_merges_and_the_car_lanes_merge_drives() {
         toml.contains(r#"target_lanes = ["fw_in_1", "fw_out_1"]"#),
         "{toml}"
     );
-    assert!(finished_egos(run) >= 10, "{} egos finished", finished_egos(run));
-    assert_eq!(controlled_collisions(run), 0);
+    drove_safely(run, 10);
 }
 
 #[test]
@@ -202,8 +207,7 @@ fn a_ramp_metered_merge_drives_the_game_as_well_as_sumo_without_passing_a_red_li
     let toml = std::fs::read_to_string(dir.join("merge.toml")).unwrap();
     assert!(toml.contains(r#"ramp_lanes = ["ramp_0"]"#), "{toml}");
     let game = &runs[0];
-    assert!(finished_egos(game) >= 10, "{} egos finished", finished_egos(game));
-    assert_eq!(controlled_collisions(game), 0);
+    drove_safely(game, 10);
     assert_eq!(game["red_light_passes"], 0);
     // The light gives each road its turn: players that made room for egos held at theirs
     // lost the road's green time (1.34 times SUMO's drivers' time loss; 1.00 as built).
@@ -333,12 +337,7 @@ fn a_ramp_fed_by_a_collector_road_holds_no_freeway_lane_and_only_its_vehicles_ar
     assert!(ctrl("onramp") >= 15, "{routes}");
     assert_eq!((ctrl("through"), ctrl("offramp")), (0, 0));
     let run = drive(&dir, "mpg", &[]);
-    assert!(
-        finished_egos(&run[0]) >= 10,
-        "{} egos finished",
-        finished_egos(&run[0])
-    );
-    assert_eq!(controlled_collisions(&run[0]), 0);
+    drove_safely(&run[0], 10);
 }
 
 /// A two-lane freeway at 30 m/s (`in`, `acc` with three lanes, `out`) that a ramp (`ramp`, 20
@@ -388,12 +387,7 @@ fn a_ramp_that_joins_on_the_inner_side_merges_into_the_lane_to_its_right() {
     // With lane-change mode 0 SUMO changes no driven ramp vehicle's lane by itself: an ego that
     // finishes was moved to `acc_1` by the controller, the lane to the right of its own.
     let runs = inspect_and_drive(&dir, "controllable", "mpg", &["--lane-change-mode", "0"]);
-    assert!(
-        finished_egos(&runs[0]) >= 10,
-        "{} egos finished",
-        finished_egos(&runs[0])
-    );
-    assert_eq!(controlled_collisions(&runs[0]), 0);
+    drove_safely(&runs[0], 10);
 }
 
 #[test]
@@ -496,12 +490,7 @@ fn what_osm_web_wizard_writes_runs_as_it_is() {
     assert!(out.status.success(), "{stderr}");
     assert!(stderr.contains("sets no step-length"), "{stderr}");
     let runs: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
-    assert!(
-        finished_egos(&runs[0]) >= 15,
-        "{} egos finished",
-        finished_egos(&runs[0])
-    );
-    assert_eq!(controlled_collisions(&runs[0]), 0);
+    drove_safely(&runs[0], 15);
 }
 
 #[test]
@@ -529,8 +518,7 @@ fn at_zipper_junctions_players_let_sumos_drivers_ahead_take_their_turn() {
     // SUMO seed 1: a player drove on beside SUMO's driver just ahead of it at the first zipper
     // (t = 486 s) and they collided in the junction, before players followed such drivers.
     let run = &game_at_30_percent(&dir, "z.rou.xml", 1.0, &[]);
-    assert!(finished_egos(run) >= 15, "{} egos finished", finished_egos(run));
-    assert_eq!(controlled_collisions(run), 0);
+    drove_safely(run, 15);
 }
 
 #[test]
@@ -569,6 +557,5 @@ fn gaps_to_trucks_are_their_bumper_gaps() {
     // SUMO seed 1: a driven car ran into a truck's rear, and a truck into an ego that entered
     // in front of it, while the world took every vehicle for a 5 m car.
     let run = &game_at_30_percent(&dir, "t.rou.xml", 1.2, &["--merge", "1"]);
-    assert!(finished_egos(run) >= 20, "{} egos finished", finished_egos(run));
-    assert_eq!(controlled_collisions(run), 0);
+    drove_safely(run, 20);
 }
