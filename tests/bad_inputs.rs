@@ -376,16 +376,16 @@ fn cases() -> Vec<Case> {
             "names no network",
         ),
         cosim(
-            "a step length other than the policy's",
+            "a step length that is not a positive number",
             vec![
                 (
                     "s.sumocfg",
-                    sumocfg("").replace("</input>", "</input><time><step-length value=\"0.5\"/></time>"),
+                    sumocfg("").replace("</input>", "</input><time><step-length value=\"-0.5\"/></time>"),
                 ),
                 ("merge.toml", read("sumo_nets/single_lane_merge/merge.toml")),
             ],
             vec!["--sumocfg", "{D}/s.sumocfg"],
-            "step length",
+            "step-length \"-0.5\" is not a positive number",
         ),
         cosim_merge(
             "merge.toml unknown key",

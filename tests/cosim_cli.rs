@@ -555,6 +555,30 @@ fn a_configuration_without_an_ssm_device_gets_one_for_the_metrics() {
 }
 
 #[test]
+fn a_configuration_at_another_step_length_runs_at_the_policys() {
+    // Flow's benchmarks and many public scenarios step SUMO at 0.2-1 s; the policy acts every
+    // sim.dt (0.1 s). Such a configuration runs as the same one at 0.1 s, and says so.
+    let dir = temp_dir("step");
+    std::fs::copy("sumo_nets/single_lane_merge/merge.rou.xml", dir.join("r.rou.xml")).unwrap();
+    let cfg = plain_sumocfg(&dir, "at01.sumocfg", "r.rou.xml");
+    let coarse = dir.join("at05.sumocfg");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    std::fs::write(&coarse, text.replace("value=\"0.1\"", "value=\"0.5\"")).unwrap();
+    let args = ["--controllers", "mpg,sumo", "--end", "60"];
+    let (fine, _) = common::cosim_json(&args, &cfg, &dir.join("fine"));
+    let (runs, stderr) = common::cosim_json(&args, &coarse, &dir.join("coarse"));
+    assert!(
+        stderr.contains("sets step-length 0.5 s: SUMO runs at the policy's 0.1 s"),
+        "{stderr}"
+    );
+    for (a, b) in fine.as_array().unwrap().iter().zip(runs.as_array().unwrap()) {
+        assert!(!a["egos"].as_array().unwrap().is_empty(), "{a}");
+        assert_eq!(a["egos"], b["egos"]);
+        assert_eq!(a["mean_time_loss"], b["mean_time_loss"]);
+    }
+}
+
+#[test]
 fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
     // `single_lane_merge` at demand 1.2 (routes seed 0), ego only, without SUMO's safe speed
     // (docs/experiments.md). Before the entry rule, with lane-change mode 256

@@ -163,18 +163,9 @@ mod with_sumo {
             )));
         }
         let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
-        // SUMO runs at the policy's step where the configuration sets none (its default, 1 s,
-        // is nobody's choice); a step it sets must be the policy's.
-        if let Some(step) = files
-            .step_length
-            .filter(|s| args.attach.is_none() && (s - config.sim.dt).abs() > 1e-9)
-        {
-            return Err(cosim::CosimError::StepLength {
-                sumo: step,
-                config: config.sim.dt,
-            }
-            .into());
-        }
+        // SUMO runs at the policy's step: its actions, the entry rule and the lane-end stop are
+        // computed for that step, and every controller of a run (SUMO's drivers too) shares it.
+        let step_differs = files.step_length.is_none_or(|s| (s - config.sim.dt).abs() > 1e-9);
         let merge = args
             .merge
             .clone()
@@ -182,9 +173,13 @@ mod with_sumo {
         let geometries = MergeGeometry::load_all(&merge)?;
         let (positions, facts) =
             mpgdrive::sumo::inputs::check_inputs(&files, args.route_files.as_deref(), &geometries, &merge)?;
-        if files.step_length.is_none() && args.attach.is_none() {
+        if step_differs && args.attach.is_none() {
+            let set = match files.step_length {
+                Some(s) => format!("sets step-length {s} s"),
+                None => "sets no step-length (SUMO's default is 1 s)".into(),
+            };
             eprintln!(
-                "cosim: {} sets no step-length (SUMO's default is 1 s): SUMO runs at the policy's {} s",
+                "cosim: {} {set}: SUMO runs at the policy's {} s, every controller alike",
                 args.sumocfg.display(),
                 config.sim.dt
             );
@@ -231,7 +226,7 @@ mod with_sumo {
             out: args.out.clone(),
             timespace: !args.no_diagrams,
             equip_ssm: args.ssm_all || !facts.ssm,
-            step_length: files.step_length.is_none().then_some(config.sim.dt),
+            step_length: step_differs.then_some(config.sim.dt),
         };
         Ok((config, settings))
     }

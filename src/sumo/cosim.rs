@@ -71,7 +71,8 @@ pub struct CosimSettings {
     /// Equip every vehicle with SUMO's SSM device (when the inputs equip none: the conflict
     /// metrics need it).
     pub equip_ssm: bool,
-    /// SUMO's step length (s), set on its command line where the configuration sets none.
+    /// SUMO's step length (s), set on its command line where the configuration sets another or
+    /// none (the policy's `sim.dt`).
     pub step_length: Option<f64>,
 }
 
