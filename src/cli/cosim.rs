@@ -184,6 +184,13 @@ mod with_sumo {
                 config.sim.dt
             );
         }
+        for lanes in positions.iter().map(|p| p.crossing()).filter(|c| !c.is_empty()) {
+            let names: Vec<&str> = lanes.iter().map(|c| c.lane.as_str()).collect();
+            eprintln!(
+                "cosim: the ramp's links at its junction also yield to {}: egos wait for their vehicles there as SUMO's drivers do",
+                names.join(", ")
+            );
+        }
         let driven = geometries.iter().flat_map(|g| &g.controllable_types);
         let policy_drives = args.controllers.iter().any(|&k| k != ControllerKind::Sumo);
         if policy_drives && !driven.clone().any(|t| facts.types.contains(t)) {

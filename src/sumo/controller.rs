@@ -98,6 +98,11 @@ use std::time::Instant;
 pub const SUMO_SPEED_MODE: i32 = 31;
 /// The speed-mode bit of SUMO's right of way at junctions.
 const RIGHT_OF_WAY: i32 = 8;
+/// The time gap (s) a ramp vehicle leaves before a crossing lane's vehicle reaches the junction
+/// ([`Controller::crossing_holds`]): SUMO's `jmTimegapMinor` default.
+const CROSSING_TIME_GAP: f64 = 1.0;
+/// The speed (m/s) below which a crossing lane's vehicle counts as crawling towards the junction.
+const CRAWL: f64 = 0.1;
 /// SUMO's default lane-change mode.
 pub const SUMO_LANE_CHANGE_MODE: i32 = 1621;
 
@@ -298,6 +303,10 @@ pub struct Controller {
     pub red_light_passes: u64,
     /// Each driven vehicle's distance to the red light ahead of it at the last step.
     red_ahead: HashMap<String, f64>,
+    /// Seconds until the first vehicle on a crossing lane ([`LanePositions::crossing`]) that
+    /// could no longer stop before it reaches the junction this step
+    /// ([`Controller::crossing_arrival`]).
+    crossing_arrival: f64,
     /// Speed of every target-lane vehicle in the control zone by distance to the conflict point,
     /// each step (whoever drives it: the traffic the egos merge into).
     pub lane_speed: SpeedBands,
@@ -420,6 +429,7 @@ impl Controller {
             overridden: 0,
             red_light_passes: 0,
             red_ahead: HashMap::new(),
+            crossing_arrival: f64::INFINITY,
             lane_speed: SpeedBands::default(),
             commanded: HashMap::new(),
             applied: HashMap::new(),
@@ -501,6 +511,7 @@ impl Controller {
             }
         }
         let cars = self.read_cars(sumo, &gone)?;
+        self.crossing_arrival = self.crossing_arrival(sumo)?;
         // An ego that left the merge's lanes (a merged ego that changed lanes before its
         // release, a ramp vehicle that took a junction link into another lane) ends there.
         let present: HashSet<&str> = cars.iter().map(|c| c.id.as_str()).collect();
@@ -1245,7 +1256,51 @@ impl Controller {
         let mut line = rules.gate;
         line.conflict_point = self.lane_end? - 0.5 * rules.length;
         let lane = ego_and_target_lane(cars, j, self.config.scenario.lane_width);
-        gate_holds(&lane, 0, &line).then(|| lane_end_bound(&car.x, &car.v, &line))
+        let holds = gate_holds(&lane, 0, &line) || self.crossing_holds(car, line.conflict_point);
+        holds.then(|| lane_end_bound(&car.x, &car.v, &line))
+    }
+
+    /// Seconds until the first vehicle on a crossing lane that could no longer stop before the
+    /// junction, braking at `sim.b_safe` after `sim.reaction_time` (the entry rule's human
+    /// follower), reaches it at its speed: 0 for one already in it, infinite without one. SUMO's
+    /// drivers with the right of way brake for a vehicle in the junction across their path.
+    fn crossing_arrival(&self, sumo: &Sumo) -> Result<f64, SumoError> {
+        let mut first = f64::INFINITY;
+        let tau = self.rules.gate.reaction_time.unwrap_or(0.0);
+        for lane in self.positions.crossing() {
+            if lane.vias.iter().any(|via| sumo.lane_vehicles(via).is_ok_and(|ids| !ids.is_empty())) {
+                return Ok(0.0);
+            }
+            for id in sumo.lane_vehicles(&lane.lane)? {
+                let s = sumo.vehicle(&id)?;
+                let to_junction = (lane.length - s.lane_pos).max(0.0);
+                if to_junction > s.speed * tau + s.speed * s.speed / (2.0 * self.rules.gate.b_safe) {
+                    continue; // it can still stop before the junction, as the entry rule asks
+                }
+                first = first.min(to_junction / s.speed.max(CRAWL));
+            }
+        }
+        Ok(first)
+    }
+
+    /// Whether a ramp vehicle whose centre's stop line is `line` must wait there for the
+    /// vehicles of a crossing lane ([`LanePositions::crossing`]), as SUMO's drivers on its
+    /// minor link do: one that could no longer stop for it reaches the junction before the
+    /// vehicle, setting off at `sim.b_safe` from where it is, has crossed it, with SUMO's
+    /// minor-link time gap ([`CROSSING_TIME_GAP`]) to spare. A vehicle that can no longer stop before the line at
+    /// `g` goes on. The training's world has no crossing lanes: this is the road's rule, as a
+    /// red light is. On a map whose ramp is linked across two lanes of its road (SMARTS's
+    /// `merge/3lane`), egos that did not wait collided in the junction with vehicles on them.
+    fn crossing_holds(&self, car: &Car, line: f64) -> bool {
+        if self.crossing_arrival.is_infinite() {
+            return false;
+        }
+        let to_line = line - car.x;
+        let can_stop = car.v * car.v <= 2.0 * self.rules.max_accel * to_line.max(0.0);
+        let across = to_line + self.positions.entry_length() + self.rules.length;
+        let a = self.rules.gate.b_safe;
+        let clear = ((car.v * car.v + 2.0 * a * across).sqrt() - car.v) / a;
+        can_stop && self.crossing_arrival < clear + CROSSING_TIME_GAP
     }
 
     /// Whether the MPG policy drives this player. `"all"`: every player, wherever it is (the

@@ -26,7 +26,7 @@ pub use geometry::MergeGeometry;
 #[cfg(feature = "sumo")]
 pub use handle::{Backend, Collision, NewVehicle, Sumo, VehicleState};
 pub use kind::ControllerKind;
-pub use positions::LanePositions;
+pub use positions::{CrossingLane, LanePositions};
 
 /// Errors of the SUMO layer.
 #[derive(Debug, thiserror::Error)]

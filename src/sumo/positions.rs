@@ -49,6 +49,23 @@ pub struct LanePositions {
     /// A junction merge whose entry links are all zipper links (SUMO's `Z`), with no traffic
     /// light: SUMO's drivers there merge by arrival, the first at the junction first.
     zipper_entry: bool,
+    /// The lanes besides the ramp and target lanes whose links the entry links yield to.
+    crossing: Vec<CrossingLane>,
+}
+
+/// An incoming lane of a junction merge's junction whose link the ramp's entry must yield to
+/// (SUMO's `response` of the entry link names it), other than the target lane's: a ramp linked
+/// across the lanes between it and its target lane (as some edited maps are), or one that
+/// yields to every lane of the road. Netconvert's on-ramps have none.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CrossingLane {
+    /// The incoming lane: a vehicle at lane position `p` on it is `length - p` before the
+    /// junction.
+    pub lane: String,
+    /// Its length (m).
+    pub length: f64,
+    /// The junction lanes of its yielded-to links: a vehicle on one is in the junction.
+    pub vias: Vec<String>,
 }
 
 /// How the ramp joins the target lane.
@@ -191,6 +208,11 @@ impl LanePositions {
         let signalised = links
             .iter()
             .any(|l| l.signalised && (ramp_lanes.contains(&l.from) || target_lanes.contains(&l.from)));
+        let ours = |lane: &str| ramp_lanes.iter().chain(target_lanes).any(|l| l == lane);
+        let crossing = crossing_lanes(doc, &links, &entry, ours)
+            .into_iter()
+            .map(|(lane, vias)| Ok(CrossingLane { length: length(&lane)?, lane, vias }))
+            .collect::<Result<_, String>>()?;
         Ok(LanePositions {
             lanes,
             form,
@@ -199,6 +221,7 @@ impl LanePositions {
             signalised,
             minor_entry,
             zipper_entry,
+            crossing,
         })
     }
 
@@ -234,6 +257,22 @@ impl LanePositions {
     /// not the vehicles behind them on the target lane made room.
     pub fn zipper_entry(&self) -> bool {
         self.zipper_entry
+    }
+
+    /// The length of the longest junction lane out of a junction merge's last ramp lane (m; 0
+    /// on an acceleration lane): how far a vehicle drives from the stop line into the target lane.
+    pub fn entry_length(&self) -> f64 {
+        self.entry
+            .iter()
+            .filter_map(|l| self.lanes.get(l))
+            .map(|p| p.length)
+            .fold(0.0, f64::max)
+    }
+
+    /// The lanes other than the ramp and target lanes whose vehicles the ramp's entry yields
+    /// to at its junction ([`CrossingLane`]); none on netconvert's on-ramps.
+    pub fn crossing(&self) -> &[CrossingLane] {
+        &self.crossing
     }
 
     /// Whether a traffic light controls a link out of a ramp or target lane (ramp metering, or
@@ -302,6 +341,75 @@ pub(crate) fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
             })
         })
         .collect()
+}
+
+/// The incoming lanes (with the junction lanes of their links) whose links one of the `entry`
+/// junction lanes yields to, by its junction's `<request response=...>` (bit `k` from the
+/// right: the link of the junction's `k`-th internal lane), and whose junction lane crosses
+/// its path, leaving out lanes `ours` says are the merge's own. Netconvert makes a minor link
+/// yield to every link into the same edge, also to those of lanes it never meets (an on-ramp
+/// joining the right lane of a three-lane road yields to all three): those are left out.
+fn crossing_lanes(
+    doc: &roxmltree::Document,
+    links: &[Link],
+    entry: &[String],
+    ours: impl Fn(&str) -> bool,
+) -> Vec<(String, Vec<String>)> {
+    let mut found: Vec<(String, Vec<String>)> = Vec::new();
+    let junctions = doc.root_element().children().filter(|n| n.has_tag_name("junction"));
+    for junction in junctions {
+        let internal: Vec<&str> = junction.attribute("intLanes").unwrap_or("").split_whitespace().collect();
+        let responses: HashMap<usize, &str> = junction
+            .children()
+            .filter(|n| n.has_tag_name("request"))
+            .filter_map(|n| Some((n.attribute("index")?.parse().ok()?, n.attribute("response")?)))
+            .collect();
+        for via in entry {
+            let Some(response) = internal.iter().position(|l| l == via).and_then(|i| responses.get(&i)) else {
+                continue;
+            };
+            let yielded = response.bytes().rev().enumerate().filter(|&(_, b)| b == b'1');
+            for foe in yielded.filter_map(|(k, _)| internal.get(k)) {
+                let Some(link) = links.iter().find(|l| l.via.as_deref() == Some(*foe)) else {
+                    continue;
+                };
+                if ours(&link.from) || !paths_cross(&shape_of(doc, via), &shape_of(doc, foe)) {
+                    continue;
+                }
+                match found.iter_mut().find(|(lane, _)| *lane == link.from) {
+                    Some((_, vias)) if !vias.iter().any(|v| v == foe) => vias.push((*foe).to_owned()),
+                    Some(_) => {}
+                    None => found.push((link.from.clone(), vec![(*foe).to_owned()])),
+                }
+            }
+        }
+    }
+    found
+}
+
+/// The centre line of lane `id` (its `shape`), empty when the network gives none.
+fn shape_of(doc: &roxmltree::Document, id: &str) -> Vec<(f64, f64)> {
+    let lane = doc.descendants().find(|n| n.has_tag_name("lane") && n.attribute("id") == Some(id));
+    let points = lane.and_then(|n| n.attribute("shape")).unwrap_or("");
+    points
+        .split_whitespace()
+        .filter_map(|p| {
+            let (x, y) = p.split_once(',')?;
+            Some((x.parse().ok()?, y.parse().ok()?))
+        })
+        .collect()
+}
+
+/// Whether two centre lines cross: a segment of one passes through a segment of the other
+/// (touching at an end, as links out of one lane do, is not crossing).
+fn paths_cross(a: &[(f64, f64)], b: &[(f64, f64)]) -> bool {
+    let side = |p: (f64, f64), q: (f64, f64), r: (f64, f64)| (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0);
+    a.windows(2).any(|s| {
+        b.windows(2).any(|t| {
+            let (p, q, r, u) = (s[0], s[1], t[0], t[1]);
+            side(p, q, r) * side(p, q, u) < 0.0 && side(r, u, p) * side(r, u, q) < 0.0
+        })
+    })
 }
 
 /// The junction lanes a vehicle passes from `from` to `to`, in order (none without internal
