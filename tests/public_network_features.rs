@@ -559,3 +559,52 @@ fn gaps_to_trucks_are_their_bumper_gaps() {
     let run = &game_at_30_percent(&dir, "t.rou.xml", 1.2, &["--merge", "1"]);
     drove_safely(run, 20);
 }
+
+#[test]
+fn egos_wait_for_the_lanes_their_junction_link_crosses() {
+    // A three-lane 14 m/s road joined from its left by a one-lane ramp whose only link crosses
+    // lanes 2 and 1 into lane 0, as SMARTS's `merge/3lane` map has it; SUMO's drivers on the
+    // ramp yield to all three lanes.
+    let dir = fresh_dir("public-crossing");
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    netconvert(
+        &dir,
+        r#"<node id="a" x="0" y="0"/><node id="j" x="400" y="0"/><node id="b" x="800" y="0"/><node id="r" x="100" y="60"/>"#,
+        r#"<edge id="in" from="a" to="j" numLanes="3" speed="14" priority="3"/><edge id="out" from="j" to="b" numLanes="3" speed="14" priority="3"/>
+        <edge id="ramp" from="r" to="j" numLanes="1" speed="14" priority="1"/>"#,
+        &[
+            ("in", 0, "out", 0),
+            ("in", 1, "out", 1),
+            ("in", 2, "out", 2),
+            ("ramp", 0, "out", 0),
+        ],
+    );
+    write(
+        "x.rou.xml",
+        r#"<routes><vType id="car" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5" speedDev="0.1"/>
+        <vType id="ctrl" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5" speedDev="0.1"/>
+        <flow id="main" type="car" begin="0" end="600" vehsPerHour="900" from="in" to="out" departLane="random" departSpeed="max"/>
+        <flow id="on" type="car" begin="0" end="600" vehsPerHour="300" from="ramp" to="out" departSpeed="max"/></routes>"#,
+    );
+    let merges = find_merges(&dir.join("net.net.xml")).unwrap();
+    assert_eq!(merges.len(), 1, "{merges:?}");
+    assert_eq!(merges[0].target_lanes, ["in_0", "out_0"]);
+    // Every vehicle playing, SUMO seed 0: 3 controlled collisions in the junction with lane 1
+    // and 2's vehicles before egos waited for them.
+    write(
+        "merge.sumocfg",
+        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/x_d1.00_m1.00_s0.rou.xml"/></input>
+        <time><step-length value="0.1"/></time></configuration>"#,
+    );
+    let out = mpgdrive_in(&dir, &["net", "inspect", "net.net.xml", "--out", "merge.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let shares = ["--controllable-share", "1", "--mainline-controllable-share", "1"];
+    let routes = [
+        &["routes", "--base", "x.rou.xml"][..],
+        &shares,
+        &["--duration", "600", "--out", "r"],
+    ];
+    let out = mpgdrive_in(&dir, &routes.concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    drove_safely(&drive(&dir, "mpg", &["--end", "600"])[0], 40);
+}

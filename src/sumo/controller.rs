@@ -1268,7 +1268,11 @@ impl Controller {
         let mut first = f64::INFINITY;
         let tau = self.rules.gate.reaction_time.unwrap_or(0.0);
         for lane in self.positions.crossing() {
-            if lane.vias.iter().any(|via| sumo.lane_vehicles(via).is_ok_and(|ids| !ids.is_empty())) {
+            if lane
+                .vias
+                .iter()
+                .any(|via| sumo.lane_vehicles(via).is_ok_and(|ids| !ids.is_empty()))
+            {
                 return Ok(0.0);
             }
             for id in sumo.lane_vehicles(&lane.lane)? {
@@ -1604,6 +1608,27 @@ mod tests {
     }
 
     /// An `mpg` controller with the paper's configuration on a one-lane merge at 180 m.
+    #[test]
+    fn a_ramp_vehicle_waits_for_a_crossing_lane_unless_it_can_no_longer_stop() {
+        // No junction lane (entry length 0), a 5 m car setting off at b_safe = 4 m/s^2.
+        let mut c = paper_controller();
+        let line = 100.0;
+        let mut holds = |arrival: f64, x: f64, v: f64| {
+            c.crossing_arrival = arrival;
+            c.crossing_holds(&car("e", x, v, true), line)
+        };
+        // Standing 3 m before the line: across the junction (3 + 5 m) in sqrt(2 * 8 / 4) = 2 s,
+        // plus SUMO's 1 s time gap.
+        assert!(holds(2.9, line - 3.0, 0.0));
+        assert!(!holds(3.1, line - 3.0, 0.0));
+        // At 10 m/s 10 m before it: (sqrt(100 + 2 * 4 * 15) - 10) / 4 = 1.21 s, plus 1 s.
+        assert!(holds(2.1, line - 10.0, 10.0));
+        assert!(!holds(2.3, line - 10.0, 10.0));
+        // 4 m before it at 10 m/s no car stops at g (10^2 > 2 * 9.81 * 4): it goes on.
+        assert!(!holds(0.0, line - 4.0, 10.0));
+        assert!(!holds(f64::INFINITY, line - 3.0, 0.0));
+    }
+
     fn paper_controller() -> Controller {
         let config =
             Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))

@@ -211,7 +211,13 @@ impl LanePositions {
         let ours = |lane: &str| ramp_lanes.iter().chain(target_lanes).any(|l| l == lane);
         let crossing = crossing_lanes(doc, &links, &entry, ours)
             .into_iter()
-            .map(|(lane, vias)| Ok(CrossingLane { length: length(&lane)?, lane, vias }))
+            .map(|(lane, vias)| {
+                Ok(CrossingLane {
+                    length: length(&lane)?,
+                    lane,
+                    vias,
+                })
+            })
             .collect::<Result<_, String>>()?;
         Ok(LanePositions {
             lanes,
@@ -356,16 +362,27 @@ fn crossing_lanes(
     ours: impl Fn(&str) -> bool,
 ) -> Vec<(String, Vec<String>)> {
     let mut found: Vec<(String, Vec<String>)> = Vec::new();
-    let junctions = doc.root_element().children().filter(|n| n.has_tag_name("junction"));
+    let junctions = doc
+        .root_element()
+        .children()
+        .filter(|n| n.has_tag_name("junction"));
     for junction in junctions {
-        let internal: Vec<&str> = junction.attribute("intLanes").unwrap_or("").split_whitespace().collect();
+        let internal: Vec<&str> = junction
+            .attribute("intLanes")
+            .unwrap_or("")
+            .split_whitespace()
+            .collect();
         let responses: HashMap<usize, &str> = junction
             .children()
             .filter(|n| n.has_tag_name("request"))
             .filter_map(|n| Some((n.attribute("index")?.parse().ok()?, n.attribute("response")?)))
             .collect();
         for via in entry {
-            let Some(response) = internal.iter().position(|l| l == via).and_then(|i| responses.get(&i)) else {
+            let Some(response) = internal
+                .iter()
+                .position(|l| l == via)
+                .and_then(|i| responses.get(&i))
+            else {
                 continue;
             };
             let yielded = response.bytes().rev().enumerate().filter(|&(_, b)| b == b'1');
@@ -389,7 +406,9 @@ fn crossing_lanes(
 
 /// The centre line of lane `id` (its `shape`), empty when the network gives none.
 fn shape_of(doc: &roxmltree::Document, id: &str) -> Vec<(f64, f64)> {
-    let lane = doc.descendants().find(|n| n.has_tag_name("lane") && n.attribute("id") == Some(id));
+    let lane = doc
+        .descendants()
+        .find(|n| n.has_tag_name("lane") && n.attribute("id") == Some(id));
     let points = lane.and_then(|n| n.attribute("shape")).unwrap_or("");
     points
         .split_whitespace()
@@ -403,7 +422,8 @@ fn shape_of(doc: &roxmltree::Document, id: &str) -> Vec<(f64, f64)> {
 /// Whether two centre lines cross: a segment of one passes through a segment of the other
 /// (touching at an end, as links out of one lane do, is not crossing).
 fn paths_cross(a: &[(f64, f64)], b: &[(f64, f64)]) -> bool {
-    let side = |p: (f64, f64), q: (f64, f64), r: (f64, f64)| (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0);
+    let side =
+        |p: (f64, f64), q: (f64, f64), r: (f64, f64)| (q.0 - p.0) * (r.1 - p.1) - (q.1 - p.1) * (r.0 - p.0);
     a.windows(2).any(|s| {
         b.windows(2).any(|t| {
             let (p, q, r, u) = (s[0], s[1], t[0], t[1]);
@@ -557,6 +577,71 @@ mod tests {
             .unwrap();
         assert_eq!(p.form(), MergeForm::AccelerationLane);
         assert!(!p.is_entry(":j2_0") && !p.minor_entry());
+    }
+
+    /// A three-lane road `a` -> `o` (centre lines at y = -8, -4.8 and -1.6 across the junction)
+    /// joined by a ramp whose junction lane runs along `ramp_shape` into `o_0`, yielding to all
+    /// three lanes as netconvert makes it.
+    fn three_lanes(ramp_shape: &str) -> String {
+        let lanes: String = (0..3)
+            .map(|k| {
+                let y = -8.0 + 3.2 * f64::from(k);
+                format!(
+                    r#"<lane id=":j_0_{k}" index="{k}" length="20.00" shape="0.00,{y:.2} 20.00,{y:.2}"/>"#
+                )
+            })
+            .collect();
+        let links: String = (0..3)
+            .map(|k| {
+                format!(
+                    r#"<connection from="a" to="o" fromLane="{k}" toLane="{k}" via=":j_0_{k}" state="M"/>
+                    <connection from=":j_0" to="o" fromLane="{k}" toLane="{k}"/>"#
+                )
+            })
+            .collect();
+        format!(
+            r#"<net>
+            <edge id=":j_0" function="internal">{lanes}</edge>
+            <edge id=":j_3" function="internal"><lane id=":j_3_0" index="0" length="22.00" shape="{ramp_shape}"/></edge>
+            <edge id="a"><lane id="a_0" index="0" length="100.00"/><lane id="a_1" index="1" length="90.00"/><lane id="a_2" index="2" length="80.00"/></edge>
+            <edge id="r"><lane id="r_0" index="0" length="40.00"/></edge>
+            <edge id="o"><lane id="o_0" index="0" length="50.00"/><lane id="o_1" index="1" length="50.00"/><lane id="o_2" index="2" length="50.00"/></edge>
+            <junction id="j" type="priority" intLanes=":j_0_0 :j_0_1 :j_0_2 :j_3_0">
+                <request index="0" response="0000" foes="1000" cont="0"/><request index="1" response="0000" foes="1000" cont="0"/>
+                <request index="2" response="0000" foes="1000" cont="0"/><request index="3" response="0111" foes="0111" cont="0"/>
+            </junction>
+            {links}
+            <connection from="r" to="o" fromLane="0" toLane="0" via=":j_3_0" state="m"/>
+            <connection from=":j_3" to="o" fromLane="0" toLane="0"/>
+            </net>"#
+        )
+    }
+
+    #[test]
+    fn a_ramp_yields_at_its_junction_to_the_lanes_its_path_crosses() {
+        let positions = |ramp_shape: &str| {
+            let net = three_lanes(ramp_shape);
+            let doc = roxmltree::Document::parse(&net).unwrap();
+            LanePositions::of_network(&doc, &lanes(&["r_0"]), &lanes(&["a_0", "o_0"]), 0.0).unwrap()
+        };
+        // From the road's left, across lanes 2 and 1 into lane 0: their vehicles cross its path.
+        let across = positions("0.00,2.00 10.00,-3.00 20.00,-8.00");
+        assert_eq!(across.entry_length(), 22.0);
+        let crossing: Vec<(&str, f64, &[String])> = (across.crossing().iter())
+            .map(|c| (c.lane.as_str(), c.length, &c.vias[..]))
+            .collect();
+        assert_eq!(
+            crossing,
+            [
+                ("a_1", 90.0, &[":j_0_1".to_owned()][..]),
+                ("a_2", 80.0, &[":j_0_2".to_owned()][..])
+            ]
+        );
+        // From the right into lane 0, netconvert's on-ramp: it yields to lanes 1 and 2 too by
+        // SUMO's request, but never meets them; lane 0 is the target lane, the entry rule's.
+        assert!(positions("0.00,-12.00 20.00,-8.00").crossing().is_empty());
+        // Touching a path at its end is not crossing it.
+        assert!(positions("0.00,-12.00 20.00,-4.80").crossing().is_empty());
     }
 
     #[test]
