@@ -168,6 +168,9 @@ impl LanePositions {
             pos += place(lane, pos, 1.0)?;
         }
         let mut entry = Vec::new();
+        // The junction lanes from the ramp into the target lane: SUMO's drivers take the first
+        // link out of their lane that leads on, and the target lane is that link's.
+        let path = joins.as_ref().map(|(_, vias)| vias.clone()).unwrap_or_default();
         match joins {
             Some((_, vias)) => {
                 for via in vias.iter().rev() {
@@ -209,7 +212,7 @@ impl LanePositions {
             .iter()
             .any(|l| l.signalised && (ramp_lanes.contains(&l.from) || target_lanes.contains(&l.from)));
         let ours = |lane: &str| ramp_lanes.iter().chain(target_lanes).any(|l| l == lane);
-        let crossing = crossing_lanes(doc, &links, &entry, ours)
+        let crossing = crossing_lanes(doc, &links, &path, ours)
             .into_iter()
             .map(|(lane, vias)| {
                 Ok(CrossingLane {
@@ -349,7 +352,7 @@ pub(crate) fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
         .collect()
 }
 
-/// The incoming lanes (with the junction lanes of their links) whose links one of the `entry`
+/// The incoming lanes (with the junction lanes of their links) whose links one of the `path`
 /// junction lanes yields to, by its junction's `<request response=...>` (bit `k` from the
 /// right: the link of the junction's `k`-th internal lane), and whose junction lane crosses
 /// its path, leaving out lanes `ours` says are the merge's own. Netconvert makes a minor link
@@ -358,7 +361,7 @@ pub(crate) fn connections_of(doc: &roxmltree::Document) -> Vec<Link> {
 fn crossing_lanes(
     doc: &roxmltree::Document,
     links: &[Link],
-    entry: &[String],
+    path: &[String],
     ours: impl Fn(&str) -> bool,
 ) -> Vec<(String, Vec<String>)> {
     let mut found: Vec<(String, Vec<String>)> = Vec::new();
@@ -377,7 +380,7 @@ fn crossing_lanes(
             .filter(|n| n.has_tag_name("request"))
             .filter_map(|n| Some((n.attribute("index")?.parse().ok()?, n.attribute("response")?)))
             .collect();
-        for via in entry {
+        for via in path {
             let Some(response) = internal
                 .iter()
                 .position(|l| l == via)
