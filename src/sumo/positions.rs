@@ -645,6 +645,27 @@ mod tests {
         assert!(positions("0.00,-12.00 20.00,-8.00").crossing().is_empty());
         // Touching a path at its end is not crossing it.
         assert!(positions("0.00,-12.00 20.00,-4.80").crossing().is_empty());
+        // A second link out of the ramp, across lanes 0 and 1 into lane 2 (as SMARTS's
+        // `merging` maps have it), is not the path into the target lane, which SUMO's drivers
+        // take (the first link out of their lane).
+        let net = three_lanes("0.00,-12.00 20.00,-8.00")
+            .replace(":j_0_2 :j_3_0\"", ":j_0_2 :j_3_0 :j_3_1\"")
+            .replace(
+                "</junction>",
+                r#"<request index="4" response="00111" foes="00111" cont="0"/></junction>"#,
+            )
+            .replace(
+                r#"shape="0.00,-12.00 20.00,-8.00"/>"#,
+                r#"shape="0.00,-12.00 20.00,-8.00"/><lane id=":j_3_1" index="1" length="25.00" shape="0.00,-12.00 20.00,-1.60"/>"#,
+            )
+            .replace(
+                "</net>",
+                r#"<connection from="r" to="o" fromLane="0" toLane="2" via=":j_3_1" state="m"/>
+                <connection from=":j_3" to="o" fromLane="1" toLane="2"/></net>"#,
+            );
+        let doc = roxmltree::Document::parse(&net).unwrap();
+        let p = LanePositions::of_network(&doc, &lanes(&["r_0"]), &lanes(&["a_0", "o_0"]), 0.0).unwrap();
+        assert_eq!((p.entry_length(), p.crossing()), (25.0, &[][..]));
     }
 
     #[test]
