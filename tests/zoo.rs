@@ -493,3 +493,62 @@ fn a_corridor_with_three_on_ramps_runs_from_one_merge_toml_and_reports_each_merg
         );
     }
 }
+
+#[test]
+fn an_ego_held_at_the_lanes_end_brakes_no_harder_than_sumos_driver_behind_it_can_follow() {
+    // The zoo's acc60-v30 (a 60 m acceleration lane on a 30 m/s road), 30% of the ramp's and
+    // the freeway's vehicles controllable, demand 1.2, routes and SUMO seed 2: an ego held at
+    // the lane's end braked from 22.9 m/s to a stop at up to 9.6 m/s^2 (t = 473.5 s), and
+    // SUMO's driver behind it came within a TTC of 1.35 s, a severe conflict.
+    let root = Outside::new("soft-stop");
+    let dir = root.0.join("net");
+    build(
+        &dir,
+        "--form acceleration --accel-lane 60 --speed 30 --lane-flow 900 --ramp-flow 400 --duration 600",
+    );
+    let routes = [
+        "routes",
+        "--base",
+        "merge.rou.xml",
+        "--scales",
+        "1.2",
+        "--controllable-share",
+        "0.3",
+        "--mainline-controllable-share",
+        "0.3",
+        "--seeds",
+        "2",
+        "--duration",
+        "600",
+        "--out",
+        "routes",
+    ];
+    let out = mpgdrive_in(&dir, &root.0.join("cache"))
+        .args(routes)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let args = [
+        "--route-files",
+        "routes/merge_d1.20_m0.30_s2.rou.xml",
+        "--controllers",
+        "mpg",
+        "--seed",
+        "2",
+        "--end",
+        "490",
+        "--out",
+        "o",
+    ];
+    let run = &cosim_in(&dir, &root.0.join("cache"), &args)[0];
+    assert!(finished_egos(run) >= 15);
+    assert_eq!(controlled_collisions(run), 0);
+    let ssm = std::fs::read_to_string(dir.join("o/ssm-mpg.xml")).unwrap();
+    let doc = roxmltree::Document::parse(&ssm).unwrap();
+    let severe: Vec<_> = (doc.descendants())
+        .filter(|n| n.has_tag_name("minTTC"))
+        .filter_map(|n| n.attribute("value")?.parse::<f64>().ok())
+        .filter(|&ttc| ttc < 1.5)
+        .collect();
+    assert!(severe.is_empty(), "TTC below 1.5 s: {severe:?}");
+}

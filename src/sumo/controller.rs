@@ -101,6 +101,9 @@ const RIGHT_OF_WAY: i32 = 8;
 /// The time gap (s) a ramp vehicle leaves before a crossing lane's vehicle reaches the junction
 /// ([`Controller::crossing_holds`]): SUMO's `jmTimegapMinor` default.
 const CROSSING_TIME_GAP: f64 = 1.0;
+/// How close behind a ramp vehicle (s at its speed) one of SUMO's drivers counts as following
+/// it ([`Controller::sumo_driver_follows`]): SSM's conflict threshold, a TTC of 3 s.
+const FOLLOWER_REACH: f64 = 3.0;
 /// The speed (m/s) below which a crossing lane's vehicle counts as crawling towards the junction.
 const CRAWL: f64 = 0.1;
 /// SUMO's default lane-change mode.
@@ -1084,7 +1087,10 @@ impl Controller {
                     (&scenes[si], m)
                 };
                 let scene_leader = nb.lane_leader.map(|l| scene_cars[si][l]);
-                let rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
+                let mut rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
+                if self.sumo_driver_follows(cars, j) {
+                    rules.gate.lane_end_brake = rules.gate.lane_end_brake.min(rules.gate.b_safe);
+                }
                 // A junction merge's ramp vehicle enters where it crosses the stop line, so the
                 // stop line's rule holds it (`stop_line_bound`), not a lane change's.
                 let junction_ramp = self.is_junction() && cars[j].on_ramp;
@@ -1162,6 +1168,27 @@ impl Controller {
             }
         }
         applied
+    }
+
+    /// Whether one of SUMO's drivers follows ramp vehicle `cars[j]` on the ramp within
+    /// [`FOLLOWER_REACH`] seconds at its own speed. Then a stop the road's end (an acceleration
+    /// lane's, or a junction's stop line) holds it to is planned at `sim.b_safe`, not at
+    /// `sim.lane_end_brake` (`g`), and harder only when it must: SUMO's drivers keep the gap a
+    /// leader braking at its type's `decel` needs (4.5 m/s^2), and one braked at `g` closed in
+    /// behind it. The zoo's `acc60-v30` (30% controllable, demand 1.2, SUMO seed 2): an ego
+    /// held at the 60 m lane's end braked from 22.9 m/s to a stop at up to 9.6 m/s^2, and
+    /// SUMO's driver behind it came within a TTC of 1.35 s (the study's one severe conflict
+    /// there; none with this, nor on `junction-v36`). The training's world has no such
+    /// drivers; behind another vehicle the policy drives, the projection keeps the gap.
+    fn sumo_driver_follows(&self, cars: &[Car], j: usize) -> bool {
+        let car = &cars[j];
+        car.on_ramp
+            && cars.iter().any(|c| {
+                c.on_ramp
+                    && c.x < car.x
+                    && car.x - c.x < self.rules.length + FOLLOWER_REACH * c.v
+                    && !self.controlled.contains(&c.id)
+            })
     }
 
     /// The rules `car`'s action is applied under, `lane_leader` being its leader in the
@@ -1608,6 +1635,22 @@ mod tests {
     }
 
     /// An `mpg` controller with the paper's configuration on a one-lane merge at 180 m.
+    #[test]
+    fn a_ramp_vehicle_knows_when_one_of_sumos_drivers_follows_it_within_3_s() {
+        let mut c = paper_controller();
+        // 5 m cars: a follower at 10 m/s is within 3 s while its bumper gap is below 30 m.
+        let follows =
+            |c: &Controller, behind: Car| c.sumo_driver_follows(&[car("e", 100.0, 15.0, true), behind], 0);
+        assert!(follows(&c, car("h", 70.0, 10.0, true)));
+        assert!(!follows(&c, car("h", 64.0, 10.0, true)));
+        assert!(!follows(&c, car("h", 90.0, 0.0, true)));
+        // Not a target-lane car beside or behind it, nor one ahead, nor a vehicle it drives.
+        assert!(!follows(&c, car("h", 90.0, 10.0, false)));
+        assert!(!follows(&c, car("h", 110.0, 10.0, true)));
+        c.controlled.insert("h".into());
+        assert!(!follows(&c, car("h", 90.0, 10.0, true)));
+    }
+
     #[test]
     fn a_ramp_vehicle_waits_for_a_crossing_lane_unless_it_can_no_longer_stop() {
         // No junction lane (entry length 0), a 5 m car setting off at b_safe = 4 m/s^2.
