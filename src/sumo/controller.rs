@@ -1319,9 +1319,9 @@ impl Controller {
     /// vehicles of a crossing lane ([`LanePositions::crossing`]), as SUMO's drivers on its
     /// minor link do: one that could no longer stop for it reaches the junction before the
     /// vehicle, setting off at `sim.b_safe` from where it is, has crossed it, with SUMO's
-    /// minor-link time gap ([`CROSSING_TIME_GAP`]) to spare. A vehicle that can no longer stop before the line at
-    /// `g` goes on. The training's world has no crossing lanes: this is the road's rule, as a
-    /// red light is. On a map whose ramp is linked across two lanes of its road (SMARTS's
+    /// minor-link time gap ([`CROSSING_TIME_GAP`]) to spare. A vehicle that can no longer stop
+    /// before the line at `g` goes on. The training's world has no crossing lanes: this is the
+    /// road's rule, as a red light is. On a map whose ramp is linked across two lanes of its road (SMARTS's
     /// `merge/3lane`), egos that did not wait collided in the junction with vehicles on them.
     fn crossing_holds(&self, car: &Car, line: f64) -> bool {
         if self.crossing_arrival.is_infinite() {
@@ -1635,7 +1635,6 @@ mod tests {
         assert!(!entry_is_safe(&scene, 0, &rules));
     }
 
-    /// An `mpg` controller with the paper's configuration on a one-lane merge at 180 m.
     #[test]
     fn a_stop_at_g_brakes_sumos_driver_behind_too_hard_when_it_asks_more_than_b_safe() {
         // The paper's world: 5 m cars, no reaction time, the lane's end stop at g = 9.81 and
@@ -1679,6 +1678,7 @@ mod tests {
         assert!(!holds(f64::INFINITY, line - 3.0, 0.0));
     }
 
+    /// An `mpg` controller with the paper's configuration on a one-lane merge at 180 m.
     fn paper_controller() -> Controller {
         let config =
             Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/paper.toml"))

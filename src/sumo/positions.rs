@@ -49,14 +49,15 @@ pub struct LanePositions {
     /// A junction merge whose entry links are all zipper links (SUMO's `Z`), with no traffic
     /// light: SUMO's drivers there merge by arrival, the first at the junction first.
     zipper_entry: bool,
-    /// The lanes besides the ramp and target lanes whose links the entry links yield to.
+    /// The lanes besides the ramp and target lanes whose links the entry yields to and whose
+    /// paths cross its own.
     crossing: Vec<CrossingLane>,
 }
 
 /// An incoming lane of a junction merge's junction whose link the ramp's entry must yield to
-/// (SUMO's `response` of the entry link names it), other than the target lane's: a ramp linked
-/// across the lanes between it and its target lane (as some edited maps are), or one that
-/// yields to every lane of the road. Netconvert's on-ramps have none.
+/// (SUMO's `response` of the entry link names it) and whose path crosses the entry's, other
+/// than the target lane's: a ramp linked across the lanes between it and its target lane (as
+/// some edited maps are). Netconvert's on-ramps have none.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CrossingLane {
     /// The incoming lane: a vehicle at lane position `p` on it is `length - p` before the
