@@ -94,16 +94,23 @@ fn netconvert(dir: &Path, nodes: &str, edges: &str, links: &[(&str, u32, &str, u
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 }
 
-/// The game with 30% of the vehicles controllable, 600 s of SUMO seed 1 in `dir`: `net inspect`
-/// with `inspect` (its arguments after the network), `routes` from the base file `base` at
-/// demand `scale`, then [`drive`]: the run.
-fn game_at_30_percent(dir: &Path, base: &str, scale: f64, inspect: &[&str]) -> serde_json::Value {
+/// The game for 600 s in `dir`: `net inspect` with `inspect` (its arguments after the network),
+/// `routes` from the base file `base` at demand `scale` with a `share` of the ramp's and the
+/// road's vehicles controllable, for SUMO seed `seed`, then [`drive`]: the run. `outputs` goes
+/// into the configuration's `<output>` (SUMO's own records, for checks of their own).
+fn game(
+    dir: &Path,
+    base: &str,
+    (scale, share, seed): (f64, f64, u64),
+    inspect: &[&str],
+    outputs: &str,
+) -> serde_json::Value {
     let stem = base.trim_end_matches(".rou.xml");
     std::fs::write(
         dir.join("merge.sumocfg"),
         format!(
-            r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/{stem}_d{scale:.2}_m0.30_s1.rou.xml"/></input>
-            <time><step-length value="0.1"/></time></configuration>"#
+            r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/{stem}_d{scale:.2}_m{share:.2}_s{seed}.rou.xml"/></input>
+            <output>{outputs}</output><time><step-length value="0.1"/></time></configuration>"#
         ),
     )
     .unwrap();
@@ -112,21 +119,26 @@ fn game_at_30_percent(dir: &Path, base: &str, scale: f64, inspect: &[&str]) -> s
         &[&["net", "inspect", "net.net.xml", "--out", "merge.toml"], inspect].concat(),
     );
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (scale, share, seed) = (scale.to_string(), share.to_string(), seed.to_string());
     let shares = [
         "--controllable-share",
-        "0.3",
+        &share,
         "--mainline-controllable-share",
-        "0.3",
+        &share,
     ];
-    let scale = scale.to_string();
     let routes = [
         &["routes", "--base", base, "--scales", &scale][..],
         &shares,
-        &["--seeds", "1", "--duration", "600", "--out", "r"],
+        &["--seeds", &seed, "--duration", "600", "--out", "r"],
     ];
     let out = mpgdrive_in(dir, &routes.concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    drive(dir, "mpg", &["--end", "600", "--seed", "1"]).remove(0)
+    drive(dir, "mpg", &["--end", "600", "--seed", &seed]).remove(0)
+}
+
+/// [`game`] with 30% of the vehicles controllable, SUMO seed 1.
+fn game_at_30_percent(dir: &Path, base: &str, scale: f64, inspect: &[&str]) -> serde_json::Value {
+    game(dir, base, (scale, 0.3, 1), inspect, "")
 }
 
 /// `mpgdrive net inspect` in `dir`, writing `merge.toml` (its `players` set to `players`),
@@ -591,20 +603,83 @@ fn egos_wait_for_the_lanes_their_junction_link_crosses() {
     assert_eq!(merges[0].target_lanes, ["in_0", "out_0"]);
     // Every vehicle playing, SUMO seed 0: 3 controlled collisions in the junction with lane 1
     // and 2's vehicles before egos waited for them.
-    write(
-        "merge.sumocfg",
-        r#"<configuration><input><net-file value="net.net.xml"/><route-files value="r/x_d1.00_m1.00_s0.rou.xml"/></input>
-        <time><step-length value="0.1"/></time></configuration>"#,
+    drove_safely(&game(&dir, "x.rou.xml", (1.0, 1.0, 0), &[], ""), 40);
+}
+
+/// Each vehicle's samples of SUMO's fcd output `path` on `lane`: (lane position, speed), in time
+/// order, and whether it was seen on a lane after them.
+fn samples_on(path: &Path, lane: &str) -> std::collections::HashMap<String, (Vec<(f64, f64)>, bool)> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let mut seen: std::collections::HashMap<String, (Vec<(f64, f64)>, bool)> = Default::default();
+    for v in doc.descendants().filter(|n| n.has_tag_name("vehicle")) {
+        let num = |key: &str| v.attribute(key).unwrap().parse::<f64>().unwrap();
+        let entry = seen.entry(v.attribute("id").unwrap().to_owned()).or_default();
+        match v.attribute("lane") == Some(lane) {
+            true => entry.0.push((num("pos"), num("speed"))),
+            false => entry.1 |= !entry.0.is_empty(),
+        }
+    }
+    seen.retain(|_, (on, _)| !on.is_empty());
+    seen
+}
+
+#[test]
+fn at_a_stop_sign_every_vehicle_stands_at_its_line_before_it_goes_on() {
+    // A one-lane 20 m/s road joined by a one-lane ramp at an all-way stop (netconvert's
+    // `allway_stop`: SUMO's `w` links, a stop sign on every approach), 30% of the vehicles
+    // controllable: egos stop at the ramp's line and players at the road's.
+    let dir = fresh_dir("public-stop-sign");
+    netconvert(
+        &dir,
+        r#"<node id="a" x="0" y="0"/><node id="j" x="500" y="0" type="allway_stop"/><node id="b" x="900" y="0"/><node id="r" x="200" y="-100"/>"#,
+        r#"<edge id="in" from="a" to="j" numLanes="1" speed="20" priority="3"/><edge id="out" from="j" to="b" numLanes="1" speed="20" priority="3"/>
+        <edge id="ramp" from="r" to="j" numLanes="1" speed="14" priority="1"/>"#,
+        &[],
     );
-    let out = mpgdrive_in(&dir, &["net", "inspect", "net.net.xml", "--out", "merge.toml"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let shares = ["--controllable-share", "1", "--mainline-controllable-share", "1"];
-    let routes = [
-        &["routes", "--base", "x.rou.xml"][..],
-        &shares,
-        &["--duration", "600", "--out", "r"],
-    ];
-    let out = mpgdrive_in(&dir, &routes.concat());
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    drove_safely(&drive(&dir, "mpg", &["--end", "600"])[0], 40);
+    std::fs::write(
+        dir.join("s.rou.xml"),
+        r#"<routes><vType id="car" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5"/>
+        <vType id="ctrl" length="5" minGap="2.5" accel="2.6" decel="4.5" sigma="0.5"/>
+        <flow id="main" type="car" begin="0" end="600" vehsPerHour="500" from="in" to="out" departSpeed="max"/>
+        <flow id="on" type="car" begin="0" end="600" vehsPerHour="200" from="ramp" to="out" departSpeed="max"/></routes>"#,
+    )
+    .unwrap();
+    let fcd = r#"<fcd-output value="fcd.xml"/>"#;
+    let run = game(&dir, "s.rou.xml", (1.0, 0.3, 1), &[], fcd);
+    drove_safely(&run, 5);
+    assert_eq!(run["stop_sign_passes"], 0);
+    // SUMO's own record: every vehicle that went on from either approach stood (below SUMO's
+    // halting speed, 0.1 m/s) within 1 m of the lane's end. Before the fix egos and players
+    // ran the signs at up to 20 m/s.
+    let net = std::fs::read_to_string(dir.join("net.net.xml")).unwrap();
+    for lane in ["ramp_0", "in_0"] {
+        let length: f64 = roxmltree::Document::parse(&net)
+            .unwrap()
+            .descendants()
+            .find(|n| n.has_tag_name("lane") && n.attribute("id") == Some(lane))
+            .and_then(|n| n.attribute("length")?.parse().ok())
+            .unwrap();
+        let passed: Vec<_> = samples_on(&dir.join("fcd.xml"), lane)
+            .into_iter()
+            .filter(|(_, (_, went_on))| *went_on)
+            .collect();
+        assert!(
+            passed.len() >= 20,
+            "{} vehicles went on from {lane}",
+            passed.len()
+        );
+        for (id, (on, _)) in passed {
+            let stood = on.iter().any(|&(pos, v)| pos >= length - 1.0 && v < 0.1);
+            let fastest = on
+                .iter()
+                .filter(|&&(pos, _)| pos >= length - 1.0)
+                .map(|s| s.1)
+                .fold(0.0, f64::max);
+            assert!(
+                stood,
+                "{id} went on from {lane} without a stop (up to {fastest} m/s in its last metre)"
+            );
+        }
+    }
 }

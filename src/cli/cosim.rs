@@ -191,6 +191,16 @@ mod with_sumo {
                 names.join(", ")
             );
         }
+        for lanes in positions
+            .iter()
+            .map(|p| p.stop_sign_lanes())
+            .filter(|l| !l.is_empty())
+        {
+            eprintln!(
+                "cosim: a stop sign ends {}: every vehicle the policy drives stands at its line before it goes on, as SUMO's drivers do",
+                lanes.join(", ")
+            );
+        }
         let driven = geometries.iter().flat_map(|g| &g.controllable_types);
         let policy_drives = args.controllers.iter().any(|&k| k != ControllerKind::Sumo);
         if policy_drives && !driven.clone().any(|t| facts.types.contains(t)) {

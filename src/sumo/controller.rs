@@ -103,6 +103,11 @@ const RIGHT_OF_WAY: i32 = 8;
 const CROSSING_TIME_GAP: f64 = 1.0;
 /// The speed (m/s) below which a crossing lane's vehicle counts as crawling towards the junction.
 const CRAWL: f64 = 0.1;
+/// SUMO's halting speed (m/s): below it a vehicle stands (its waiting time runs).
+const HALTING_SPEED: f64 = 0.1;
+/// How far before a stop sign's line (m) a vehicle's front may stand to count as stopped at it
+/// (the stopping bound halts it 0.1 m before the line; SUMO's drivers halt 0.1 m or less before it).
+const STOP_SIGN_REACH: f64 = 1.0;
 /// SUMO's default lane-change mode.
 pub const SUMO_LANE_CHANGE_MODE: i32 = 1621;
 
@@ -185,6 +190,9 @@ struct Car {
     /// A ramp car held by its red light before the merge: in no game until the light turns
     /// green (SUMO drives it meanwhile, and stops it there).
     held_at_red: bool,
+    /// A stop sign at the end of the lane it is on that it has not yet stood at: the distance
+    /// from its front to the stop line (m; [`LanePositions::stop_sign`]).
+    stop_sign: Option<f64>,
     /// The speed limit of the lane it is on (m/s), when the network gives one.
     speed_limit: Option<f64>,
     /// How much longer than the world's car it is, halved (m; [`Scene::excess`]).
@@ -303,6 +311,14 @@ pub struct Controller {
     pub red_light_passes: u64,
     /// Each driven vehicle's distance to the red light ahead of it at the last step.
     red_ahead: HashMap<String, f64>,
+    /// Driven vehicles that passed a stop sign's line without coming to a standstill at it
+    /// (`Controller::stop_sign_bound` holds them).
+    pub stop_sign_passes: u64,
+    /// The lane of the stop sign each driven vehicle had ahead of it at the last step, not
+    /// yet stood at.
+    sign_ahead: HashMap<String, String>,
+    /// The lane at whose stop sign each vehicle last stood.
+    stood: HashMap<String, String>,
     /// Seconds until the first vehicle on a crossing lane ([`LanePositions::crossing`]) that
     /// could no longer stop before it reaches the junction this step
     /// ([`Controller::crossing_arrival`]).
@@ -429,6 +445,9 @@ impl Controller {
             overridden: 0,
             red_light_passes: 0,
             red_ahead: HashMap::new(),
+            stop_sign_passes: 0,
+            sign_ahead: HashMap::new(),
+            stood: HashMap::new(),
             crossing_arrival: f64::INFINITY,
             lane_speed: SpeedBands::default(),
             commanded: HashMap::new(),
@@ -822,9 +841,25 @@ impl Controller {
                     self.red_light_passes += 1;
                 }
             }
+            // SUMO's drivers stand at a stop sign's line before they go on (speed below SUMO's
+            // halting speed, 0.1 m/s); from then on the link is a minor one.
+            let stop_sign = (self.positions.stop_sign(&on))
+                .map(|line| (line - front).max(0.0))
+                .filter(|&d| {
+                    if s.speed < HALTING_SPEED && d <= STOP_SIGN_REACH {
+                        self.stood.insert(id.clone(), on.clone());
+                    }
+                    self.stood.get(&id) != Some(&on)
+                });
+            if let Some(lane) = self.sign_ahead.remove(&id) {
+                if lane != on && self.stood.get(&id) != Some(&lane) {
+                    self.stop_sign_passes += 1;
+                }
+            }
             cars.push(Car {
                 signal,
                 held_at_red,
+                stop_sign,
                 speed_limit: self.positions.speed_limit(&on),
                 excess: 0.5 * (s.length - self.config.vehicle.length),
                 on_ramp: ramp && x < in_lane_from,
@@ -1133,6 +1168,7 @@ impl Controller {
                 if let Some(stop) = [
                     self.stop_line_bound(cars, j, &rules),
                     Self::signal_bound(car, &rules),
+                    Self::stop_sign_bound(car, &rules),
                 ]
                 .into_iter()
                 .flatten()
@@ -1160,6 +1196,10 @@ impl Controller {
                 }
                 if let Some((_, d)) = car.signal.filter(|&(state, d)| is_red(state) && d >= 0.0) {
                     self.red_ahead.insert(car.id.clone(), d);
+                }
+                if car.stop_sign.is_some() {
+                    let lane = self.lane_class.get(&car.id).cloned().unwrap_or_default();
+                    self.sign_ahead.insert(car.id.clone(), lane);
                 }
                 applied[r] = (j, a);
             }
@@ -1252,14 +1292,30 @@ impl Controller {
     /// `junction-v20-signal`, demand 1.2, speed mode 0).
     fn signal_bound(car: &Car, rules: &WorldRules) -> Option<f64> {
         let (state, dist) = car.signal.filter(|&(_, d)| d >= 0.0)?;
-        let mut line = rules.gate;
-        line.conflict_point = car.x + dist;
-        line.brake = rules.gate.b_safe;
-        let bound = stop_bound(&car.x, &car.v, &line);
+        let bound = Self::stop_ahead(car, dist, rules);
         match state {
             'y' | 'Y' => (bound >= -rules.gate.b_safe).then_some(bound),
             _ => is_red(state).then_some(bound),
         }
+    }
+
+    /// The largest action that stops `car`'s front `dist` metres ahead braking at `sim.b_safe`
+    /// from where it must (harder only when it must).
+    fn stop_ahead(car: &Car, dist: f64, rules: &WorldRules) -> f64 {
+        let mut line = rules.gate;
+        line.conflict_point = car.x + dist;
+        line.brake = rules.gate.b_safe;
+        stop_bound(&car.x, &car.v, &line)
+    }
+
+    /// The largest action that brings `car` to a standstill at the line of a stop sign it has
+    /// not yet stood at ([`Car::stop_sign`]), braking at `sim.b_safe` as at a red light; none
+    /// without one. From the standstill on the link is a minor one: at the ramp's end the entry
+    /// rule decides ([`Controller::stop_line_bound`]). With speed mode 0 SUMO does not stop
+    /// the vehicles it is told to drive: without this the egos ran `priority_stop` ramps at
+    /// up to 20 m/s, and the players an `allway_stop`'s road.
+    fn stop_sign_bound(car: &Car, rules: &WorldRules) -> Option<f64> {
+        car.stop_sign.map(|dist| Self::stop_ahead(car, dist, rules))
     }
 
     /// A junction merge's entry rule at the stop line, for a ramp vehicle the policy drives
@@ -1528,6 +1584,7 @@ mod tests {
             path_leader: None,
             signal: None,
             held_at_red: false,
+            stop_sign: None,
             speed_limit: None,
             excess: 0.0,
         }
@@ -1608,6 +1665,31 @@ mod tests {
         assert_eq!(Controller::signal_bound(&at_light('y', 1.0), &rules), None);
         // Past the stop line (SUMO's negative distance) it clears the junction at red too.
         assert_eq!(Controller::signal_bound(&at_light('r', -2.0), &rules), None);
+    }
+
+    #[test]
+    fn a_stop_sign_ahead_brings_a_car_to_a_standstill_at_its_line_braking_at_b_safe() {
+        let rules = WorldRules::new(
+            &Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/traffic.toml"))
+                .unwrap(),
+        );
+        let before_sign = |dist: f64| Car {
+            stop_sign: Some(dist),
+            ..car("c", 100.0, 10.0, true)
+        };
+        // 15 m before the line at 10 m/s, b_safe 4, dt 0.1: after this step's 1 m and the stop
+        // margin 13.9 m are left, where it may reach v' = -0.4 + sqrt(0.16 + 8 * 13.9) =
+        // 10.1527 m/s, so a <= 1.527 m/s^2.
+        let bound = Controller::stop_sign_bound(&before_sign(15.0), &rules).unwrap();
+        assert!((bound - 1.5272).abs() < 1e-3, "{bound}");
+        // 8 m before it, it must brake harder than b_safe: it does (the action's own bound is g).
+        assert!(Controller::stop_sign_bound(&before_sign(8.0), &rules).unwrap() < -rules.gate.b_safe);
+        // Without a sign ahead, or once it has stood at the line (`Car::stop_sign` is then none),
+        // nothing.
+        assert_eq!(
+            Controller::stop_sign_bound(&car("c", 100.0, 10.0, true), &rules),
+            None
+        );
     }
 
     #[test]

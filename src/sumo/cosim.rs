@@ -181,6 +181,8 @@ pub struct ControllerRun {
     pub speed_overrides: u64,
     /// Driven vehicles that passed a red light (on a signalised merge; none expected).
     pub red_light_passes: u64,
+    /// Driven vehicles that passed a stop sign without a standstill at its line (none expected).
+    pub stop_sign_passes: u64,
     /// Mean speed of the finished egos by distance to the conflict point ([`profile`]).
     pub speed_by_position: Vec<BandSpeed>,
     /// Mean speed of the target-lane vehicles in the control zone, by the same bands: the
@@ -375,10 +377,12 @@ pub fn run_controller(
     let mut merges = Vec::new();
     let mut speed_overrides = 0;
     let mut red_light_passes = 0;
+    let mut stop_sign_passes = 0;
     for (k, mut controller) in controllers.into_iter().enumerate() {
         lane_speed.add(&controller.lane_speed);
         speed_overrides += controller.overridden;
         red_light_passes += controller.red_light_passes;
+        stop_sign_passes += controller.stop_sign_passes;
         // Every controller sees SUMO's collisions: one event, controlled if any drove a party.
         for event in &controller.collisions {
             let same = |c: &&mut CollisionEvent| {
@@ -425,6 +429,7 @@ pub fn run_controller(
         per_step(controller_us),
     );
     run.red_light_passes = red_light_passes;
+    run.stop_sign_passes = stop_sign_passes;
     run.merges = settings
         .merges
         .iter()
@@ -558,6 +563,7 @@ fn summarise(
         collisions,
         speed_overrides,
         red_light_passes: 0,
+        stop_sign_passes: 0,
         speed_by_position: bands.bands(),
         lane_speed_by_position: Vec::new(),
         sumo_us_per_step,

@@ -52,6 +52,9 @@ pub struct LanePositions {
     /// The lanes besides the ramp and target lanes whose links the entry yields to and whose
     /// paths cross its own.
     crossing: Vec<CrossingLane>,
+    /// The ramp and target lanes whose link on along the merge is a stop sign, with the
+    /// position of their end, its stop line.
+    stop_signs: HashMap<String, f64>,
 }
 
 /// An incoming lane of a junction merge's junction whose link the ramp's entry must yield to
@@ -209,6 +212,23 @@ impl LanePositions {
             place(&ramp_lanes[k], start, 1.0)?;
         }
         let road_speed = net.get(&meets).and_then(|l| l.speed);
+        let mut steps: Vec<(&String, &String)> = (ramp_lanes.windows(2).chain(target_lanes.windows(2)))
+            .map(|w| (&w[0], &w[1]))
+            .collect();
+        if form == MergeForm::Junction {
+            steps.push((accel, &meets));
+        }
+        let stop_signs = steps
+            .into_iter()
+            .filter(|&(from, to)| {
+                let link = links.iter().find(|l| l.from == *from && l.to == *to);
+                link.is_some_and(Link::is_stop_sign)
+            })
+            .filter_map(|(from, _)| {
+                let p = lanes.get(from)?;
+                Some((from.clone(), p.start + p.scale * p.length))
+            })
+            .collect();
         let signalised = links
             .iter()
             .any(|l| l.signalised && (ramp_lanes.contains(&l.from) || target_lanes.contains(&l.from)));
@@ -232,6 +252,7 @@ impl LanePositions {
             minor_entry,
             zipper_entry,
             crossing,
+            stop_signs,
         })
     }
 
@@ -291,6 +312,19 @@ impl LanePositions {
         self.signalised
     }
 
+    /// The stop line at the end of `lane` (its position), where its link on along the merge is a
+    /// stop sign ([`Link::is_stop_sign`]); none elsewhere.
+    pub fn stop_sign(&self, lane: &str) -> Option<f64> {
+        self.stop_signs.get(lane).copied()
+    }
+
+    /// The lanes that end at a stop sign ([`LanePositions::stop_sign`]), sorted.
+    pub fn stop_sign_lanes(&self) -> Vec<&str> {
+        let mut lanes: Vec<&str> = self.stop_signs.keys().map(String::as_str).collect();
+        lanes.sort_unstable();
+        lanes
+    }
+
     /// The position of lane position `lane_pos` on `lane` (none for a lane off the merge).
     pub fn position(&self, lane: &str, lane_pos: f64) -> Option<f64> {
         self.lanes.get(lane).map(|p| p.start + p.scale * lane_pos)
@@ -333,6 +367,15 @@ pub(crate) struct Link {
     pub(crate) straight: bool,
     /// The link is controlled by a traffic light.
     pub(crate) signalised: bool,
+}
+
+impl Link {
+    /// A stop sign without a traffic light: SUMO's `s` (a minor road's stop, `priority_stop`
+    /// junctions) or `w` (`allway_stop`). SUMO's drivers come to a standstill at its stop line
+    /// before they go on (then as a minor link: `s` gives way).
+    pub(crate) fn is_stop_sign(&self) -> bool {
+        !self.signalised && matches!(self.state.as_str(), "s" | "w")
+    }
 }
 
 /// The network's connections, lane to lane, in file order.
@@ -529,6 +572,41 @@ mod tests {
         <connection from=":j_0" to="o" fromLane="0" toLane="0"/>
         <connection from=":j_0" to="o" fromLane="1" toLane="1"/>
     </net>"#;
+
+    #[test]
+    fn a_stop_sign_ends_the_lanes_whose_link_into_the_merge_says_stop() {
+        let stops = |replace: &[(&str, &str)]| {
+            let net = (replace.iter()).fold(JUNCTION.to_owned(), |net, (from, to)| net.replacen(from, to, 1));
+            let doc = roxmltree::Document::parse(&net).unwrap();
+            let p = LanePositions::of_network(&doc, &lanes(&["r_0"]), &lanes(&["a_0", "o_0"]), 0.0).unwrap();
+            (p.stop_sign("r_0"), p.stop_sign("a_0"), p.stop_sign_lanes().len())
+        };
+        // Minor and major links: no stop sign.
+        assert_eq!(stops(&[]), (None, None, 0));
+        // A priority_stop junction (`s` on the ramp's link into o_0): its line is the ramp's
+        // end, 98 m (laid out in the test above); the ramp's other link (into o_1) is not its
+        // path and does not count.
+        let ramp = r#"via=":j_0_0" state="m""#;
+        assert_eq!(
+            stops(&[(ramp, r#"via=":j_0_0" state="s""#)]),
+            (Some(98.0), None, 1)
+        );
+        assert_eq!(
+            stops(&[(r#"via=":j_0_1" state="m""#, r#"via=":j_0_1" state="s""#)]),
+            (None, None, 0)
+        );
+        // An allway_stop junction (`w` everywhere): the target lane a_0 stops at its end, 100 m.
+        let all = [
+            (ramp, r#"via=":j_0_0" state="w""#),
+            (r#"state="M""#, r#"state="w""#),
+        ];
+        assert_eq!(stops(&all), (Some(98.0), Some(100.0), 2));
+        // Behind a traffic light a stop-like state is the light's, not a sign.
+        assert_eq!(
+            stops(&[(ramp, r#"via=":j_0_0" tl="j" state="s""#)]),
+            (None, None, 0)
+        );
+    }
 
     #[test]
     fn a_junction_merge_ends_the_ramp_where_its_junction_lane_meets_the_target_lanes() {
