@@ -6,10 +6,10 @@
 //! `tools/game/ramp` network), an on-ramp that joins on the freeway's inner side, and what
 //! osmWebWizard writes (a gzip-compressed network, trips without a controllable type, a
 //! configuration without a step length that asks for SUMO's verbose output), on-ramps that
-//! join at zipper nodes, where SUMO's drivers merge by arrival, and trucks. A lane
+//! join at zipper nodes, where SUMO's drivers merge by arrival, trucks, and stop signs. A lane
 //! closed to cars is neither a ramp nor a target lane, and a freeway lane is no ramp lane; the
 //! merge `net inspect` proposes drives in `cosim`, at a signal too, where no driven vehicle
-//! passes a red light.
+//! passes a red light, and at a stop sign, where every one stands at its line.
 #![cfg(feature = "sumo")]
 
 mod common;

@@ -72,7 +72,8 @@
 //! teleport or vanish are dropped from the games at once. On a signalised merge a vehicle held
 //! by its red light before the merge is out of it until the light turns green (SUMO drives
 //! it: `Car::held_at_red`), and a driven vehicle stops at a red light ahead
-//! (`Controller::signal_bound`).
+//! (`Controller::signal_bound`), and stands at a stop sign's line before it goes on
+//! (`Controller::stop_sign_bound`).
 
 use crate::config::{Config, Entry};
 use crate::engine::outcome::EgoStats;
@@ -314,9 +315,9 @@ pub struct Controller {
     /// Driven vehicles that passed a stop sign's line without coming to a standstill at it
     /// (`Controller::stop_sign_bound` holds them).
     pub stop_sign_passes: u64,
-    /// The lane of the stop sign each driven vehicle had ahead of it at the last step, not
-    /// yet stood at.
-    sign_ahead: HashMap<String, String>,
+    /// Where the centre of each driven vehicle that had a stop sign ahead of it at the last step,
+    /// not yet stood at, is when its front reaches the line.
+    sign_ahead: HashMap<String, f64>,
     /// The lane at whose stop sign each vehicle last stood.
     stood: HashMap<String, String>,
     /// Seconds until the first vehicle on a crossing lane ([`LanePositions::crossing`]) that
@@ -791,6 +792,9 @@ impl Controller {
             }
         }
         let in_lane_from = self.scene_entry();
+        let signs_ahead = std::mem::take(&mut self.sign_ahead);
+        let present: HashSet<&str> = found.iter().map(|(id, _, _)| id.as_str()).collect();
+        self.stood.retain(|id, _| present.contains(id.as_str()));
         let mut cars = Vec::with_capacity(found.len());
         self.lane_class.clear();
         for (id, lane, on) in found {
@@ -851,10 +855,9 @@ impl Controller {
                     }
                     self.stood.get(&id) != Some(&on)
                 });
-            if let Some(lane) = self.sign_ahead.remove(&id) {
-                if lane != on && self.stood.get(&id) != Some(&lane) {
-                    self.stop_sign_passes += 1;
-                }
+            // Past the line it had not stood at (a car that left the lane sideways is gone).
+            if signs_ahead.get(&id).is_some_and(|&line| x > line) {
+                self.stop_sign_passes += 1;
             }
             cars.push(Car {
                 signal,
@@ -1197,9 +1200,8 @@ impl Controller {
                 if let Some((_, d)) = car.signal.filter(|&(state, d)| is_red(state) && d >= 0.0) {
                     self.red_ahead.insert(car.id.clone(), d);
                 }
-                if car.stop_sign.is_some() {
-                    let lane = self.lane_class.get(&car.id).cloned().unwrap_or_default();
-                    self.sign_ahead.insert(car.id.clone(), lane);
+                if let Some(d) = car.stop_sign {
+                    self.sign_ahead.insert(car.id.clone(), car.x + d);
                 }
                 applied[r] = (j, a);
             }
