@@ -387,6 +387,18 @@ fn cases() -> Vec<Case> {
             vec!["--sumocfg", "{D}/s.sumocfg"],
             "step-length \"-0.5\" is not a positive number",
         ),
+        cosim(
+            "a begin that is not a time",
+            vec![
+                (
+                    "s.sumocfg",
+                    sumocfg("").replace("</input>", "</input><time><begin value=\"6 am\"/></time>"),
+                ),
+                ("merge.toml", read("sumo_nets/single_lane_merge/merge.toml")),
+            ],
+            vec!["--sumocfg", "{D}/s.sumocfg"],
+            "begin \"6 am\" is not a time of 0 s or later",
+        ),
         cosim_merge(
             "merge.toml unknown key",
             merge_with("players", "playrs"),

@@ -44,6 +44,7 @@ fn demand_scales_shares_and_seeds() {
         controllable_shares: vec![0.5],
         mainline_share: None,
         seeds: vec![0, 1],
+        begin: 0.0,
         duration: 3600.0,
         streams: Default::default(),
     };
@@ -93,6 +94,7 @@ fn out_of_range_shares_are_refused() {
         controllable_shares: Vec::new(),
         mainline_share: None,
         seeds: vec![0],
+        begin: 0.0,
         duration: 60.0,
         streams: Default::default(),
     };
@@ -110,6 +112,7 @@ fn a_controllable_share_sweep_keeps_the_arrivals_and_changes_the_types() {
         controllable_shares: vec![0.0, 1.0],
         mainline_share: None,
         seeds: vec![3],
+        begin: 0.0,
         duration: 300.0,
         streams: Default::default(),
     };
@@ -150,6 +153,7 @@ fn regression_fuzz_a_nan_begin_or_an_absurd_rate_is_refused_not_looped_on() {
         controllable_shares: Vec::new(),
         mainline_share: None,
         seeds: vec![0],
+        begin: 0.0,
         duration: 900.0,
         streams: Default::default(),
     };
@@ -183,6 +187,7 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
         controllable_shares: vec![],
         mainline_share: share,
         seeds: vec![3],
+        begin: 0.0,
         duration: 900.0,
         streams: Default::default(),
     };
@@ -245,6 +250,7 @@ fn each_stream_alone_keeps_its_vehicles_of_the_file_of_all_flows() {
         controllable_shares: vec![0.3],
         mainline_share: Some(0.3),
         seeds: vec![5],
+        begin: 0.0,
         duration: 300.0,
         streams,
     };
@@ -310,6 +316,7 @@ fn a_controllable_share_applies_to_a_ramp_flow_of_a_plain_type() {
         controllable_shares: shares,
         mainline_share: None,
         seeds: vec![1],
+        begin: 0.0,
         duration: 300.0,
         streams: Streams::All,
     };
@@ -398,6 +405,7 @@ fn explicit_vehicles_and_trips_are_kept_copied_by_the_scale_and_take_the_shares(
         controllable_shares: shares,
         mainline_share: mainline,
         seeds: vec![0],
+        begin: 0.0,
         duration: 600.0,
         streams,
     };
@@ -525,6 +533,7 @@ fn flows_with_a_route_in_them_poisson_periods_and_sumos_default_interval_are_gen
         controllable_shares: vec![1.0],
         mainline_share: None,
         seeds: vec![0],
+        begin: 0.0,
         duration: 600.0,
         streams: Streams::All,
     };
@@ -608,6 +617,7 @@ fn route_files_that_split_types_and_flows_are_one_demand() {
         controllable_shares: vec![0.3],
         mainline_share: Some(0.3),
         seeds: vec![4],
+        begin: 0.0,
         duration: 300.0,
         streams: Streams::All,
     };
@@ -626,4 +636,42 @@ fn route_files_that_split_types_and_flows_are_one_demand() {
         vehicles(&out.join(&whole[0].file)),
         vehicles(&out.join(&split[0].file))
     );
+}
+
+#[test]
+fn departures_start_at_the_begin_of_the_configuration_that_runs_them() {
+    // The I-80 base file with its flows an hour later (3,600-4,500 s), as public scenarios set
+    // their flows at the hour they model: a window from 3,600 s gives the vehicles of the window
+    // from 0 of the file as it is, an hour later; one from 0 s over 300 s gives none.
+    let (base, geometry) = i80();
+    let out = out_dir("begin");
+    std::fs::create_dir_all(&out).unwrap();
+    let later = out.join("later.rou.xml");
+    let text = std::fs::read_to_string(&base).unwrap();
+    std::fs::write(
+        &later,
+        text.replace(r#"begin="0" end="900""#, r#"begin="3600" end="4500""#),
+    )
+    .unwrap();
+    let spec = |begin: f64| DemandSpec {
+        scales: vec![1.2],
+        ramp_share: None,
+        controllable_shares: vec![0.3],
+        mainline_share: Some(0.3),
+        seeds: vec![2],
+        begin,
+        duration: 300.0,
+        streams: Streams::All,
+    };
+    let merges = std::slice::from_ref(&geometry);
+    let now = vehicles(&out.join(&generate(&base, merges, &spec(0.0), &out).unwrap()[0].file));
+    let then = vehicles(&out.join(&generate(&later, merges, &spec(3600.0), &out).unwrap()[0].file));
+    assert!(now.len() > 400, "{} vehicles", now.len());
+    assert_eq!(now.len(), then.len());
+    for ((t0, type0, route0), (t1, type1, route1)) in now.iter().zip(&then) {
+        assert!((t1 - t0 - 3600.0).abs() < 0.011, "{t0} -> {t1}");
+        assert_eq!((type0, route0), (type1, route1));
+    }
+    let err = generate(&later, merges, &spec(0.0), &out).unwrap_err();
+    assert!(err.to_string().contains("departs between 0 and 300 s"), "{err}");
 }

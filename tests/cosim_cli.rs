@@ -579,6 +579,40 @@ fn a_configuration_at_another_step_length_runs_at_the_policys() {
 }
 
 #[test]
+fn a_configuration_that_begins_later_runs_its_duration_from_its_begin() {
+    // Public scenarios begin at the hour they model (MoST at 14,400 s): the same traffic an hour
+    // later, in a configuration that begins at "1:00:00", gives the same run an hour later.
+    let dir = temp_dir("begin");
+    let routes = std::fs::read_to_string("sumo_nets/single_lane_merge/merge.rou.xml").unwrap();
+    std::fs::write(dir.join("r.rou.xml"), &routes).unwrap();
+    let later = routes.replace(r#"begin="0" end="300""#, r#"begin="3600" end="3900""#);
+    std::fs::write(dir.join("later.rou.xml"), later).unwrap();
+    let cfg = plain_sumocfg(&dir, "now.sumocfg", "r.rou.xml");
+    let text = std::fs::read_to_string(plain_sumocfg(&dir, "then.sumocfg", "later.rou.xml")).unwrap();
+    let then = dir.join("then.sumocfg");
+    std::fs::write(&then, text.replace("<time>", "<time><begin value=\"1:00:00\"/>")).unwrap();
+    let args = ["--controllers", "mpg,sumo", "--end", "90"];
+    let (now, _) = common::cosim_json(&args, &cfg, &dir.join("now"));
+    let (later, _) = common::cosim_json(&args, &then, &dir.join("then"));
+    for (a, b) in now.as_array().unwrap().iter().zip(later.as_array().unwrap()) {
+        assert_eq!((&a["simulated"], &b["simulated"]), (&90.0.into(), &90.0.into()));
+        assert_eq!(a["mean_time_loss"], b["mean_time_loss"]);
+        let (x, y) = (a["egos"].as_array().unwrap(), b["egos"].as_array().unwrap());
+        assert!(
+            x.len() >= 5 && x.len() == y.len(),
+            "{} and {} egos",
+            x.len(),
+            y.len()
+        );
+        for (e, f) in x.iter().zip(y) {
+            assert_eq!((&e["id"], &e["metrics"]), (&f["id"], &f["metrics"]));
+            let shift = f["start"].as_f64().unwrap() - e["start"].as_f64().unwrap();
+            assert!((shift - 3600.0).abs() < 1e-6, "{shift}");
+        }
+    }
+}
+
+#[test]
 fn egos_that_signal_their_merge_get_room_from_sumos_drivers() {
     // `single_lane_merge` at demand 1.2 (routes seed 0), ego only, without SUMO's safe speed
     // (docs/experiments.md). Before the entry rule, with lane-change mode 256

@@ -203,6 +203,7 @@ fn fuzz_route_generator_base_file() {
         controllable_shares: vec![0.5],
         mainline_share: None,
         seeds: vec![0],
+        begin: 0.0,
         duration: 30.0,
         streams: Default::default(),
     };

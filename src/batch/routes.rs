@@ -22,7 +22,9 @@
 //! A `manifest.json` lists the files with their parameters.
 
 use crate::atomic;
-use crate::batch::route_base::{Flow, TypeShares, controllable_type, controllable_types, parse_base};
+use crate::batch::route_base::{
+    Explicit, Flow, TypeShares, controllable_type, controllable_types, parse_base,
+};
 use crate::sumo::geometry::MergeGeometry;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -45,7 +47,9 @@ pub struct DemandSpec {
     pub mainline_share: Option<f64>,
     /// One route file per seed and scale.
     pub seeds: Vec<u64>,
-    /// Departures up to this time (s), within each flow's begin and end.
+    /// Departures from this time (s; a configuration's begin, SUMO's default 0) ...
+    pub begin: f64,
+    /// ... for this many seconds, within each flow's begin and end.
     pub duration: f64,
     /// Which flows the files carry; a flow's arrivals do not depend on it.
     pub streams: Streams,
@@ -249,6 +253,12 @@ pub fn generate(
             "demand scales must be positive numbers".into(),
         ));
     }
+    if !(spec.begin.is_finite() && spec.begin >= 0.0) {
+        return Err(RoutesError::Invalid(format!(
+            "--begin {} must be a time of 0 s or later",
+            spec.begin
+        )));
+    }
     if !(spec.duration.is_finite() && spec.duration > 0.0) {
         return Err(RoutesError::Invalid(format!(
             "--duration {} must be positive",
@@ -333,12 +343,28 @@ pub fn generate(
             "--ramp-share needs both ramp and freeway flows in the base file".into(),
         ));
     }
+    let until = spec.begin + spec.duration;
+    // A window that holds no departure would give empty files, and runs without traffic.
+    let in_window = |v: &&Explicit| spec.streams.carries(v.ramp) && (spec.begin..until).contains(&v.depart.1);
+    if !(base.flows.iter())
+        .any(|f| spec.streams.carries(f.ramp) && f.per_hour > 0.0 && f.begin < until && f.end > spec.begin)
+        && !base.explicit.iter().any(|v| in_window(&v))
+    {
+        return Err(RoutesError::Invalid(format!(
+            "no flow or vehicle of the base file departs between {} and {until} s: set the begin \
+             time of the configuration that runs them (`routes --begin`)",
+            spec.begin
+        )));
+    }
     // A bound on the work: Poisson arrivals at an absurd rate would never reach the end.
     for &scale in &spec.scales {
         let expected: f64 = base
             .flows
             .iter()
-            .map(|f| f.per_hour * scale * factor(f) / 3600.0 * (f.end.min(spec.duration) - f.begin).max(0.0))
+            .map(|f| {
+                f.per_hour * scale * factor(f) / 3600.0
+                    * (f.end.min(until) - f.begin.max(spec.begin)).max(0.0)
+            })
             .sum::<f64>()
             + base.explicit.len() as f64 * scale;
         if expected > MAX_VEHICLES {
@@ -373,8 +399,10 @@ pub fn generate(
                 rng.set_stream(k as u64);
                 let mut type_rng = ChaCha8Rng::seed_from_u64(seed);
                 type_rng.set_stream((1 << 32) + k as u64);
+                // The arrivals run from the flow's begin whatever the window's: a flow's
+                // vehicles are the same in every window that holds them.
                 let mut t = flow.begin;
-                let end = flow.end.min(spec.duration);
+                let end = flow.end.min(until);
                 let mut n = 0usize;
                 loop {
                     t += -(1.0 - rng.random::<f64>()).ln() / rate;
@@ -388,6 +416,9 @@ pub fn generate(
                         &type_shares(share),
                         (&mut rng, &mut type_rng),
                     );
+                    if t < spec.begin {
+                        continue;
+                    }
                     let extra: String = flow
                         .extra
                         .iter()
@@ -412,7 +443,7 @@ pub fn generate(
             // Explicit vehicles: each kept (copied) `scale` times in expectation, every copy at
             // its departure, as SUMO's --scale does; copies after the first are `<id>#<k>`.
             for (j, v) in base.explicit.iter().enumerate() {
-                if !spec.streams.carries(v.ramp) || v.depart.1 >= spec.duration {
+                if !in_window(&v) {
                     continue;
                 }
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -451,13 +482,18 @@ pub fn generate(
             let streams = only.map_or(String::new(), |n| format!("_{n}"));
             let file = format!("{stem}_d{scale:.2}{swept}{mainline}{streams}_s{seed}.rou.xml");
             let mut xml = format!(
-                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, mainline controllable share {:?}{}, seed {seed}, {} s -->\n<routes>\n",
+                "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- mpgdrive routes from {}: demand scale {scale}, ramp share {:?}, controllable share {:?}, mainline controllable share {:?}{}, seed {seed}, {} s{} -->\n<routes>\n",
                 base_path.display(),
                 spec.ramp_share,
                 share,
                 spec.mainline_share,
                 only.map_or(String::new(), |n| format!(", only the {n} flows")),
-                spec.duration
+                spec.duration,
+                if spec.begin > 0.0 {
+                    format!(" from {} s", spec.begin)
+                } else {
+                    String::new()
+                }
             );
             for v in &base.verbatim {
                 xml += &format!("    {v}\n");

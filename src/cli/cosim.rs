@@ -32,7 +32,7 @@ pub struct CosimArgs {
     /// SUMO's random seed (logged with the results).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Simulated duration (s).
+    /// Simulated duration (s), from the begin time the configuration sets (SUMO's default 0).
     #[arg(long, default_value_t = 900.0)]
     end: f64,
     /// The merge gate as a shield for the ramp vehicles the policy drives: true or false (the

@@ -34,7 +34,11 @@ pub struct RoutesArgs {
     /// Seeds of the arrivals, one route file per seed and scale.
     #[arg(long, value_delimiter = ',', default_value = "0")]
     seeds: Vec<u64>,
-    /// Departures over this many seconds.
+    /// Departures from this time (s) on: the begin time of the configuration that runs them
+    /// (public scenarios start at the hour they model).
+    #[arg(long, default_value_t = 0.0)]
+    begin: f64,
+    /// Departures over this many seconds (from --begin).
     #[arg(long, default_value_t = 900.0)]
     duration: f64,
     /// Which flows the files carry: all, or the ramp's or the freeway's alone (with the
@@ -108,6 +112,7 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         controllable_shares: args.controllable_share,
         mainline_share: args.mainline_controllable_share,
         seeds: args.seeds,
+        begin: args.begin,
         duration: args.duration,
         streams: args.streams.into(),
     };

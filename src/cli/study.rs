@@ -57,7 +57,7 @@ pub struct StudyArgs {
     /// Seeds, comma-separated: each gives its own arrivals and SUMO's random seed.
     #[arg(long, value_delimiter = ',', default_value = "0,1,2")]
     seeds: Vec<u64>,
-    /// Simulated duration of each run (s); departures span it.
+    /// Simulated duration of each run (s), from the configuration's begin; departures span it.
     #[arg(long, default_value_t = 900.0)]
     end: f64,
     /// Worker processes at a time (default: the number of cores).
@@ -145,6 +145,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             controllable_shares: vec![share],
             mainline_share: Some(share),
             seeds: args.seeds.clone(),
+            begin: files.begin,
             duration: args.end,
             streams,
         };

@@ -55,7 +55,7 @@ pub struct CosimSettings {
     pub geometry_path: PathBuf,
     /// SUMO's random seed.
     pub seed: u64,
-    /// Simulated duration (s).
+    /// Simulated duration (s), from the configuration's begin on.
     pub end: f64,
     /// The largest `minGap` of the route files' vehicle types (m): driven vehicles keep at
     /// least this bumper gap ([`Controller::keep_min_gap`]).
@@ -236,8 +236,10 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         settings.sumocfg.display().to_string(),
         "--seed".into(),
         settings.seed.to_string(),
+        // No end of SUMO's own: the run ends `settings.end` after the configuration's begin
+        // (`more_to_run`), which public scenarios set to the hour they model (MoST's 14,400 s).
         "--end".into(),
-        settings.end.to_string(),
+        "-1".into(),
         "--no-warnings".into(),
         "true".into(),
         "--no-step-log".into(),
@@ -301,8 +303,10 @@ fn absolute(path: &Path) -> String {
 }
 
 /// Whether a run goes on: before `end` (to half a step) and with vehicles still expected.
-fn more_to_run(sumo: &Sumo, end: f64, dt: f64) -> Result<bool, SumoError> {
-    Ok(sumo.time()? < end - 0.5 * dt && sumo.min_expected()? > 0)
+/// Whether a run that began at SUMO time `begin` and lasts `duration` (s) has steps left:
+/// before its end and with vehicles still running or to come.
+fn more_to_run(sumo: &Sumo, begin: f64, duration: f64, dt: f64) -> Result<bool, SumoError> {
+    Ok(sumo.time()? < begin + duration - 0.5 * dt && sumo.min_expected()? > 0)
 }
 
 /// Runs one controller over the whole simulation.
@@ -356,7 +360,8 @@ pub fn run_controller(
     let mut sumo_us = 0.0;
     let mut steps = 0u64;
     let mut taken = HashSet::new();
-    while more_to_run(&sumo, settings.end, dt)? {
+    let begin = sumo.time()?;
+    while more_to_run(&sumo, begin, settings.end, dt)? {
         let t0 = Instant::now();
         sumo.step()?;
         sumo_us += t0.elapsed().as_secs_f64() * 1e6;
@@ -366,7 +371,7 @@ pub fn run_controller(
         }
         steps += 1;
     }
-    let simulated = sumo.time()?;
+    let simulated = sumo.time()? - begin;
     sumo.close()?;
     let controller_us: f64 = controllers.iter().map(|c| c.timing().total_us).sum();
     let desired_speed = controllers.first().and_then(Controller::desired_speed);
@@ -470,7 +475,8 @@ pub fn plain_sumo_us_per_step(settings: &CosimSettings) -> Result<f64, CosimErro
     let dt = sumo.delta_t()?;
     let started = Instant::now();
     let mut steps = 0u64;
-    while more_to_run(&sumo, settings.end, dt)? {
+    let begin = sumo.time()?;
+    while more_to_run(&sumo, begin, settings.end, dt)? {
         sumo.step()?;
         steps += 1;
     }

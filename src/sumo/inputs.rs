@@ -85,6 +85,8 @@ pub struct ConfigFiles {
     pub additional: Vec<PathBuf>,
     /// `step-length` (s), if the configuration sets one (SUMO's default is 1 s).
     pub step_length: Option<f64>,
+    /// `begin` (s), the time the simulation starts at (SUMO's default 0).
+    pub begin: f64,
     /// The configuration equips vehicles with the SSM device itself (`device.ssm.probability`
     /// or `device.ssm.explicit`).
     pub ssm_option: bool,
@@ -129,6 +131,16 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
                 .ok_or_else(|| content(sumocfg, format!("step-length {v:?} is not a positive number")))?,
         ),
     };
+    let begin = match doc
+        .descendants()
+        .find(|n| n.has_tag_name("begin"))
+        .and_then(|n| n.attribute("value"))
+    {
+        None => 0.0,
+        Some(v) => sumo_time(v)
+            .filter(|t| *t >= 0.0)
+            .ok_or_else(|| content(sumocfg, format!("begin {v:?} is not a time of 0 s or later")))?,
+    };
     let ssm_option = doc
         .descendants()
         .any(|n| n.has_tag_name("device.ssm.probability") || n.has_tag_name("device.ssm.explicit"));
@@ -137,8 +149,29 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
         routes: list("route-files"),
         additional: list("additional-files"),
         step_length,
+        begin,
         ssm_option,
     })
+}
+
+/// A SUMO time value: seconds, or `[[d:]h:]m:s` as SUMO also reads them ("6:00:00" is 21,600
+/// s); none for anything else.
+fn sumo_time(value: &str) -> Option<f64> {
+    let parts: Vec<&str> = value.trim().split(':').collect();
+    if parts.len() > 4 {
+        return None;
+    }
+    let mut seconds = 0.0;
+    for (k, part) in parts.iter().enumerate() {
+        let x: f64 = part.trim().parse().ok().filter(|x: &f64| x.is_finite())?;
+        // Every field but the last (seconds) is a whole number.
+        if k + 1 < parts.len() && (x.fract() != 0.0 || x < 0.0) {
+            return None;
+        }
+        let unit = [1.0, 60.0, 3600.0, 86_400.0][parts.len() - 1 - k];
+        seconds += x * unit;
+    }
+    Some(seconds)
 }
 
 /// Reads the network in `net` (XML with a `<net>` root) and hands it to `f`.
@@ -448,6 +481,24 @@ pub fn check_inputs(
 mod tests {
     use super::*;
     use std::io::Write;
+
+    #[test]
+    fn sumo_times_read_in_seconds_and_in_days_hours_minutes_and_seconds() {
+        for (text, seconds) in [
+            ("21600", Some(21_600.0)),
+            (" 0.5 ", Some(0.5)),
+            ("6:00:00", Some(21_600.0)),
+            ("16:40", Some(1_000.0)),
+            ("1:00:00:01.5", Some(86_401.5)),
+            ("1:2:3:4:5", None),
+            ("0:-1:00", None),
+            ("1.5:00", None),
+            ("6 am", None),
+            ("", None),
+        ] {
+            assert_eq!(sumo_time(text), seconds, "{text:?}");
+        }
+    }
 
     #[test]
     fn a_gzip_compressed_input_reads_as_its_plain_text_and_a_broken_one_is_an_error() {
