@@ -579,6 +579,47 @@ fn a_configuration_at_another_step_length_runs_at_the_policys() {
 }
 
 #[test]
+fn a_configuration_with_the_ballistic_update_or_mesoscopic_runs_in_the_policys_world() {
+    // The policy's world moves each vehicle by one speed per step, on lanes. Under SUMO's
+    // ballistic update a held ego slid past its stop line into the junction in front of a car
+    // (a netconvert junction merge, 2,400 + 500 veh/h: 4 controlled collisions in 300 s), and a
+    // mesoscopic run had no SSM output. Either runs as the same configuration without it.
+    let dir = temp_dir("dynamics");
+    std::fs::copy("sumo_nets/single_lane_merge/merge.rou.xml", dir.join("r.rou.xml")).unwrap();
+    let cfg = plain_sumocfg(&dir, "plain.sumocfg", "r.rou.xml");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    for (name, option) in [
+        (
+            "ballistic",
+            "<processing><step-method.ballistic value=\"true\"/></processing>",
+        ),
+        ("meso", "<mesoscopic><mesosim value=\"true\"/></mesoscopic>"),
+    ] {
+        let other = dir.join(format!("{name}.sumocfg"));
+        std::fs::write(
+            &other,
+            text.replace("</configuration>", &format!("{option}</configuration>")),
+        )
+        .unwrap();
+        let args = ["--controllers", "mpg,sumo", "--end", "60"];
+        let (plain, _) = common::cosim_json(&args, &cfg, &dir.join("plain"));
+        let (runs, stderr) = common::cosim_json(&args, &other, &dir.join(name));
+        assert!(
+            stderr.contains("SUMO runs with the policy's world's update"),
+            "{stderr}"
+        );
+        for (a, b) in plain.as_array().unwrap().iter().zip(runs.as_array().unwrap()) {
+            assert!(!a["egos"].as_array().unwrap().is_empty(), "{a}");
+            assert_eq!(
+                (&a["egos"], &a["mean_time_loss"]),
+                (&b["egos"], &b["mean_time_loss"]),
+                "{name}"
+            );
+        }
+    }
+}
+
+#[test]
 fn a_configuration_that_begins_later_runs_its_duration_from_its_begin() {
     // Public scenarios begin at the hour they model (MoST at 14,400 s): the same traffic an hour
     // later, in a configuration that begins at "1:00:00", gives the same run an hour later.

@@ -184,6 +184,13 @@ mod with_sumo {
                 config.sim.dt
             );
         }
+        if !files.other_dynamics.is_empty() && args.attach.is_none() {
+            eprintln!(
+                "cosim: {} sets {}: SUMO runs with the policy's world's update (one speed per step, microscopic), every controller alike",
+                args.sumocfg.display(),
+                files.other_dynamics.join(" and ")
+            );
+        }
         for lanes in positions.iter().map(|p| p.crossing()).filter(|c| !c.is_empty()) {
             let names: Vec<&str> = lanes.iter().map(|c| c.lane.as_str()).collect();
             eprintln!(

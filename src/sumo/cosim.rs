@@ -240,6 +240,13 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         // (`more_to_run`), which public scenarios set to the hour they model (MoST's 14,400 s).
         "--end".into(),
         "-1".into(),
+        // The policy's world moves each vehicle by one speed per step, on lanes: SUMO runs so
+        // for every controller, whatever the configuration sets. Under the ballistic update a
+        // held ego slid past its stop line and into the junction in front of a car.
+        "--step-method.ballistic".into(),
+        "false".into(),
+        "--mesosim".into(),
+        "false".into(),
         "--no-warnings".into(),
         "true".into(),
         "--no-step-log".into(),

@@ -87,6 +87,10 @@ pub struct ConfigFiles {
     pub step_length: Option<f64>,
     /// `begin` (s), the time the simulation starts at (SUMO's default 0).
     pub begin: f64,
+    /// The ways of running SUMO the configuration asks for that are not the policy's world:
+    /// `step-method.ballistic` (positions move by the mean of the old and new speed, where the
+    /// world's move by one speed per step) and `mesosim` (queues on edges, without lanes).
+    pub other_dynamics: Vec<&'static str>,
     /// The configuration equips vehicles with the SSM device itself (`device.ssm.probability`
     /// or `device.ssm.explicit`).
     pub ssm_option: bool,
@@ -141,6 +145,14 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
             .filter(|t| *t >= 0.0)
             .ok_or_else(|| content(sumocfg, format!("begin {v:?} is not a time of 0 s or later")))?,
     };
+    let set = |option: &str| {
+        (doc.descendants())
+            .any(|n| n.has_tag_name(option) && n.attribute("value").is_some_and(|v| v.trim() == "true"))
+    };
+    let other_dynamics = ["step-method.ballistic", "mesosim"]
+        .into_iter()
+        .filter(|o| set(o))
+        .collect();
     let ssm_option = doc
         .descendants()
         .any(|n| n.has_tag_name("device.ssm.probability") || n.has_tag_name("device.ssm.explicit"));
@@ -150,6 +162,7 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
         additional: list("additional-files"),
         step_length,
         begin,
+        other_dynamics,
         ssm_option,
     })
 }
