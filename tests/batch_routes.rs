@@ -47,6 +47,7 @@ fn demand_scales_shares_and_seeds() {
         begin: 0.0,
         duration: 3600.0,
         streams: Default::default(),
+        loaded: Vec::new(),
     };
     let manifest = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
     assert_eq!(manifest.len(), 4);
@@ -97,6 +98,7 @@ fn out_of_range_shares_are_refused() {
         begin: 0.0,
         duration: 60.0,
         streams: Default::default(),
+        loaded: Vec::new(),
     };
     let err = generate(&base, std::slice::from_ref(&geometry), &spec, &out_dir("bad")).unwrap_err();
     assert!(err.to_string().contains("--ramp-share 1.5"), "{err}");
@@ -115,6 +117,7 @@ fn a_controllable_share_sweep_keeps_the_arrivals_and_changes_the_types() {
         begin: 0.0,
         duration: 300.0,
         streams: Default::default(),
+        loaded: Vec::new(),
     };
     let manifest = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
     let files: Vec<(&str, Option<f64>)> = manifest
@@ -156,6 +159,7 @@ fn regression_fuzz_a_nan_begin_or_an_absurd_rate_is_refused_not_looped_on() {
         begin: 0.0,
         duration: 900.0,
         streams: Default::default(),
+        loaded: Vec::new(),
     };
     for (from, to, needle) in [
         (
@@ -190,6 +194,7 @@ fn a_mainline_share_makes_freeway_vehicles_controllable_and_keeps_the_arrivals()
         begin: 0.0,
         duration: 900.0,
         streams: Default::default(),
+        loaded: Vec::new(),
     };
     let plain = generate(&base, std::slice::from_ref(&geometry), &spec(None), &out).unwrap();
     let mixed = generate(&base, std::slice::from_ref(&geometry), &spec(Some(0.3)), &out).unwrap();
@@ -253,6 +258,7 @@ fn each_stream_alone_keeps_its_vehicles_of_the_file_of_all_flows() {
         begin: 0.0,
         duration: 300.0,
         streams,
+        loaded: Vec::new(),
     };
     let write = |streams| generate(&base, std::slice::from_ref(&geometry), &spec(streams), &out).unwrap();
     let (all, ramp, freeway) = (write(Streams::All), write(Streams::Ramp), write(Streams::Freeway));
@@ -286,11 +292,11 @@ fn each_stream_alone_keeps_its_vehicles_of_the_file_of_all_flows() {
     .unwrap();
     // i80.rou.xml: the ramp's flow and six lanes' flows; the bare file: one freeway flow.
     assert_eq!(
-        flows_by_stream(&base, std::slice::from_ref(&geometry)).unwrap(),
+        flows_by_stream(&base, &[], std::slice::from_ref(&geometry)).unwrap(),
         (1, 6)
     );
     assert_eq!(
-        flows_by_stream(&bare, std::slice::from_ref(&geometry)).unwrap(),
+        flows_by_stream(&bare, &[], std::slice::from_ref(&geometry)).unwrap(),
         (0, 1)
     );
     let mut only_ramp = spec(Streams::Ramp);
@@ -319,6 +325,7 @@ fn a_controllable_share_applies_to_a_ramp_flow_of_a_plain_type() {
         begin: 0.0,
         duration: 300.0,
         streams: Streams::All,
+        loaded: Vec::new(),
     };
     let files = |shares| generate(&base, std::slice::from_ref(&geometry), &spec(shares), &out).unwrap();
     let plain = vehicles(&out.join(&files(vec![])[0].file));
@@ -408,6 +415,7 @@ fn explicit_vehicles_and_trips_are_kept_copied_by_the_scale_and_take_the_shares(
         begin: 0.0,
         duration: 600.0,
         streams,
+        loaded: Vec::new(),
     };
     // (tag, id, type, depart, the rest of the element) of every vehicle of a generated file.
     let read = |spec: DemandSpec| -> Vec<(String, String, String, String, String)> {
@@ -477,7 +485,7 @@ fn explicit_vehicles_and_trips_are_kept_copied_by_the_scale_and_take_the_shares(
         .map(|v| v.2)
         .collect();
     assert_eq!(types, ["human", "ctrl", "ctrl"]);
-    assert_eq!(flows_by_stream(&base, merges).unwrap(), (2, 2));
+    assert_eq!(flows_by_stream(&base, &[], merges).unwrap(), (2, 2));
     // Scale 0.5 over 400 vehicles keeps about half (4 standard deviations of 10).
     let many: String = (0..400)
         .map(|k| format!("<vehicle id=\"v{k}\" type=\"human\" route=\"freeway\" depart=\"{k}\"/>"))
@@ -536,6 +544,7 @@ fn flows_with_a_route_in_them_poisson_periods_and_sumos_default_interval_are_gen
         begin: 0.0,
         duration: 600.0,
         streams: Streams::All,
+        loaded: Vec::new(),
     };
     let m = generate(&base, std::slice::from_ref(&geometry), &spec, &out).unwrap();
     let text = std::fs::read_to_string(out.join(&m[0].file)).unwrap();
@@ -620,6 +629,7 @@ fn route_files_that_split_types_and_flows_are_one_demand() {
         begin: 0.0,
         duration: 300.0,
         streams: Streams::All,
+        loaded: Vec::new(),
     };
     let merges = std::slice::from_ref(&geometry);
     let err = generate(&a, merges, &spec, &out).unwrap_err();
@@ -662,6 +672,7 @@ fn departures_start_at_the_begin_of_the_configuration_that_runs_them() {
         begin,
         duration: 300.0,
         streams: Streams::All,
+        loaded: Vec::new(),
     };
     let merges = std::slice::from_ref(&geometry);
     let now = vehicles(&out.join(&generate(&base, merges, &spec(0.0), &out).unwrap()[0].file));
@@ -674,4 +685,63 @@ fn departures_start_at_the_begin_of_the_configuration_that_runs_them() {
     }
     let err = generate(&later, merges, &spec(0.0), &out).unwrap_err();
     assert!(err.to_string().contains("departs between 0 and 300 s"), "{err}");
+}
+
+#[test]
+fn types_and_routes_of_the_additional_files_count_and_are_not_written_again() {
+    // The bundled I-80 routes with their types and routes in an additional file, as many
+    // public scenarios keep them: the flows alone give the vehicles of the whole file, and the
+    // generated file defines no type or route SUMO already loads (it refuses one defined twice).
+    let (base, geometry) = i80();
+    let out = out_dir("additional");
+    let text = std::fs::read_to_string(&base).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let (mut defs, mut flows) = (String::new(), String::new());
+    for node in doc.root_element().children().filter(|n| n.is_element()) {
+        let tag = node.tag_name().name();
+        let part = if tag.starts_with("vType") || tag.starts_with("route") {
+            &mut defs
+        } else {
+            &mut flows
+        };
+        *part += &text[node.range()];
+    }
+    assert!(!defs.is_empty() && !flows.is_empty());
+    std::fs::create_dir_all(&out).unwrap();
+    let (add, only_flows) = (out.join("types.add.xml"), out.join("flows.rou.xml"));
+    std::fs::write(
+        &add,
+        format!("<additional>{defs}<e1Detector id=\"d\"/></additional>"),
+    )
+    .unwrap();
+    std::fs::write(&only_flows, format!("<routes>{flows}</routes>")).unwrap();
+    let spec = |loaded: Vec<PathBuf>| DemandSpec {
+        scales: vec![1.2],
+        ramp_share: None,
+        controllable_shares: vec![0.3],
+        mainline_share: Some(0.3),
+        seeds: vec![3],
+        begin: 0.0,
+        duration: 300.0,
+        streams: Streams::All,
+        loaded,
+    };
+    let merges = std::slice::from_ref(&geometry);
+    // Without the additional file the flows' routes are undefined.
+    let err = generate(&only_flows, merges, &spec(Vec::new()), &out).unwrap_err();
+    assert!(err.to_string().contains("not defined before it"), "{err}");
+    let whole = generate(&base, merges, &spec(Vec::new()), &out).unwrap();
+    let whole = vehicles(&out.join(&whole[0].file));
+    let split = generate(&only_flows, merges, &spec(vec![add]), &out).unwrap();
+    let written = std::fs::read_to_string(out.join(&split[0].file)).unwrap();
+    assert_eq!(vehicles(&out.join(&split[0].file)), whole);
+    assert!(
+        whole.len() > 400 && whole.iter().any(|v| v.1 == "ctrl"),
+        "{} vehicles",
+        whole.len()
+    );
+    assert!(
+        !written.contains("<vType") && !written.contains("<route "),
+        "{written:.300}"
+    );
 }

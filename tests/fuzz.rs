@@ -206,6 +206,7 @@ fn fuzz_route_generator_base_file() {
         begin: 0.0,
         duration: 30.0,
         streams: Default::default(),
+        loaded: Vec::new(),
     };
     let corpus = seeds(&[
         "sumo_nets/i80_merge/i80.rou.xml",

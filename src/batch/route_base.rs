@@ -118,6 +118,9 @@ impl<'a> RampEdges<'a> {
 pub(super) struct Base {
     /// vType, vTypeDistribution and route elements, verbatim.
     pub(super) verbatim: Vec<String>,
+    /// The same elements of the files loaded with it ([`loaded_elements`]): defined, not
+    /// written.
+    pub(super) loaded: Vec<String>,
     pub(super) flows: Vec<Flow>,
     pub(super) explicit: Vec<Explicit>,
     /// vTypeDistribution id -> (controllable member, other member).
@@ -133,14 +136,52 @@ pub(super) struct Base {
     pub(super) left_out: Vec<String>,
 }
 
-pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> Result<Base, RoutesError> {
+/// The vehicle types, type distributions, routes and route distributions SUMO loads with the
+/// route files from other files (a configuration's additional files), as one `<routes>`
+/// document: the base file's flows and vehicles may use them, and a generated file must not
+/// define them again.
+pub(super) fn loaded_elements(paths: &[std::path::PathBuf]) -> Result<String, RoutesError> {
+    let mut out = String::from("<routes>\n");
+    for path in paths {
+        let text = crate::sumo::inputs::read_sumo_file(path).map_err(|source| RoutesError::Io {
+            path: path.clone(),
+            source,
+        })?;
+        let doc = roxmltree::Document::parse(&text).map_err(|e| RoutesError::Base {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
+        let kept = ["vType", "vTypeDistribution", "route", "routeDistribution"];
+        for node in doc
+            .root_element()
+            .children()
+            .filter(|n| kept.contains(&n.tag_name().name()))
+        {
+            out += &text[node.range()];
+            out.push('\n');
+        }
+    }
+    out += "</routes>\n";
+    Ok(out)
+}
+
+/// The base route file at `path` (its `text`) as the generator reads it, with the elements of
+/// `loaded` ([`loaded_elements`]) defined before it but left out of `verbatim`.
+pub(super) fn parse_base(
+    path: &Path,
+    text: &str,
+    loaded: &str,
+    merges: &[MergeGeometry],
+) -> Result<Base, RoutesError> {
     let bad = |message: String| RoutesError::Base {
         path: path.to_path_buf(),
         message,
     };
+    let given =
+        roxmltree::Document::parse(loaded).map_err(|e| bad(format!("the files loaded with it: {e}")))?;
     let doc = roxmltree::Document::parse(text).map_err(|e| bad(e.to_string()))?;
     // An element's children (an embedded route, stops, parameters), verbatim; none when blank.
-    let children = |node: roxmltree::Node| match (node.first_child(), node.last_child()) {
+    let children = |node: roxmltree::Node, text: &str| match (node.first_child(), node.last_child()) {
         (Some(a), Some(b)) if !text[a.range().start..b.range().end].trim().is_empty() => {
             text[a.range().start..b.range().end].to_owned()
         }
@@ -158,8 +199,19 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
     let mut flows = Vec::new();
     let mut explicit = Vec::new();
     let mut left_out: Vec<(String, usize)> = Vec::new();
-    for node in doc.root_element().children().filter(|n| n.is_element()) {
+    // The loaded files' types and routes count as the base file's, defined before it; only
+    // the base file's own are copied into the generated files.
+    let mut defined_elsewhere = Vec::new();
+    let elements = (given.root_element().children().map(|n| (n, loaded, true)))
+        .chain(doc.root_element().children().map(|n| (n, text, false)))
+        .filter(|(n, _, _)| n.is_element());
+    for (node, text, elsewhere) in elements {
         let attr = |k: &str| node.attribute(k).map(str::to_owned);
+        let children = |node| children(node, text);
+        let verbatim = match elsewhere {
+            true => &mut defined_elsewhere,
+            false => &mut verbatim,
+        };
         match node.tag_name().name() {
             "vType" => {
                 verbatim.push(text[node.range()].to_owned());
@@ -321,27 +373,34 @@ pub(super) fn parse_base(path: &Path, text: &str, merges: &[MergeGeometry]) -> R
     // A file that defines no controllable type (osmWebWizard's trips, randomTrips without
     // types) gets one: the same car as its first passenger car's vType, or SUMO's default car.
     // The policies' world is one of passenger cars.
-    let defined = |c: &str| verbatim.iter().any(|v| v.contains(&format!("id=\"{c}\"")));
-    let derived_type = match controllable.first() {
-        Some(ctrl) if !controllable.iter().any(|c| defined(c)) => {
-            let copy = car_copy.unwrap_or_else(|| format!("<vType id=\"{ctrl}\"/>"));
-            verbatim.push(copy);
-            Some(ctrl.to_string())
-        }
-        _ => None,
-    };
-    Ok(Base {
+    let mut base = Base {
         verbatim,
+        loaded: defined_elsewhere,
         flows,
         explicit,
         mixes,
         human,
-        derived_type,
+        derived_type: None,
         left_out: left_out.iter().map(|(tag, n)| format!("{n} <{tag}>")).collect(),
-    })
+    };
+    if let Some(ctrl) = controllable
+        .first()
+        .filter(|_| !controllable.iter().any(|c| base.defines(c)))
+    {
+        base.verbatim
+            .push(car_copy.unwrap_or_else(|| format!("<vType id=\"{ctrl}\"/>")));
+        base.derived_type = Some(ctrl.to_string());
+    }
+    Ok(base)
 }
 
 impl Base {
+    /// Whether the file or the files loaded with it define `id` (a type or route).
+    pub(super) fn defines(&self, id: &str) -> bool {
+        let attribute = format!("id=\"{id}\"");
+        (self.verbatim.iter().chain(&self.loaded)).any(|v| v.contains(&attribute))
+    }
+
     /// Whether each flow, then each explicit vehicle, starts on a ramp lane.
     pub(super) fn ramp_flags(&self) -> impl Iterator<Item = bool> + '_ {
         (self.flows.iter().map(|f| f.ramp)).chain(self.explicit.iter().map(|v| v.ramp))
@@ -401,12 +460,7 @@ pub(super) struct TypeShares<'a> {
 
 /// A controllable type the base file defines (as a vType or a member of a distribution).
 pub(super) fn controllable_type(base: &Base, merges: &[MergeGeometry]) -> Option<String> {
-    controllable_types(merges).into_iter().find_map(|c| {
-        base.verbatim
-            .iter()
-            .any(|v| v.contains(&format!("id=\"{c}\"")))
-            .then(|| c.to_owned())
-    })
+    (controllable_types(merges).into_iter()).find_map(|c| base.defines(c).then(|| c.to_owned()))
 }
 
 /// The controllable types of every merge, each once, in order.
@@ -464,7 +518,13 @@ mod tests {
             let text = format!(
                 "<routes>{types}<trip id=\"t\" type=\"veh_passenger\" depart=\"0\" from=\"r\" to=\"acc\"/></routes>"
             );
-            let base = parse_base(Path::new("t.rou.xml"), &text, std::slice::from_ref(&merge)).unwrap();
+            let base = parse_base(
+                Path::new("t.rou.xml"),
+                &text,
+                "<routes/>",
+                std::slice::from_ref(&merge),
+            )
+            .unwrap();
             (base.derived_type, base.verbatim)
         };
         // osmWebWizard's trips: the first controllable type is the same car, its children too.
@@ -488,7 +548,13 @@ mod tests {
         let text = "<routes><person id=\"p\" depart=\"0\"><walk edges=\"r\"/></person><vType id=\"car\"/>\
                     <person id=\"q\" depart=\"1\"/><container id=\"c\" depart=\"2\"/>\
                     <trip id=\"t\" type=\"car\" depart=\"0\" from=\"r\" to=\"acc\"/></routes>";
-        let base = parse_base(Path::new("t.rou.xml"), text, std::slice::from_ref(&merge)).unwrap();
+        let base = parse_base(
+            Path::new("t.rou.xml"),
+            text,
+            "<routes/>",
+            std::slice::from_ref(&merge),
+        )
+        .unwrap();
         assert_eq!(base.left_out, ["2 <person>", "1 <container>"]);
     }
 }

@@ -23,7 +23,7 @@
 
 use crate::atomic;
 use crate::batch::route_base::{
-    Explicit, Flow, TypeShares, controllable_type, controllable_types, parse_base,
+    Explicit, Flow, TypeShares, controllable_type, controllable_types, loaded_elements, parse_base,
 };
 use crate::sumo::geometry::MergeGeometry;
 use rand::{Rng, SeedableRng};
@@ -53,6 +53,10 @@ pub struct DemandSpec {
     pub duration: f64,
     /// Which flows the files carry; a flow's arrivals do not depend on it.
     pub streams: Streams,
+    /// Files SUMO loads with the route files (a configuration's additional files): their
+    /// vehicle types and routes count as the base file's, and the generated files leave them
+    /// out (SUMO refuses a type defined twice).
+    pub loaded: Vec<PathBuf>,
 }
 
 /// Which of the base file's flows a route file carries.
@@ -193,12 +197,17 @@ pub fn combined_route_files(paths: &[PathBuf]) -> Result<String, RoutesError> {
 
 /// How many of the flows and explicit vehicles of the base file at `base_path` drive along a
 /// ramp of `merges`, and how many do not: which [`Streams`] it can give.
-pub fn flows_by_stream(base_path: &Path, merges: &[MergeGeometry]) -> Result<(usize, usize), RoutesError> {
+/// `loaded`: files SUMO loads with it ([`DemandSpec::loaded`]).
+pub fn flows_by_stream(
+    base_path: &Path,
+    loaded: &[PathBuf],
+    merges: &[MergeGeometry],
+) -> Result<(usize, usize), RoutesError> {
     let text = crate::sumo::inputs::read_sumo_file(base_path).map_err(|source| RoutesError::Io {
         path: base_path.to_path_buf(),
         source,
     })?;
-    let base = parse_base(base_path, &text, merges)?;
+    let base = parse_base(base_path, &text, &loaded_elements(loaded)?, merges)?;
     let ramp = base.ramp_flags().filter(|&r| r).count();
     Ok((ramp, base.ramp_flags().count() - ramp))
 }
@@ -270,7 +279,7 @@ pub fn generate(
         move |source| RoutesError::Io { path, source }
     };
     let text = crate::sumo::inputs::read_sumo_file(base_path).map_err(io(base_path))?;
-    let base = parse_base(base_path, &text, merges)?;
+    let base = parse_base(base_path, &text, &loaded_elements(&spec.loaded)?, merges)?;
     let controllable = controllable_types(merges);
     let ctrl_type = controllable_type(&base, merges);
     let plain_ramp_share = spec.controllable_shares.iter().any(|&c| c > 0.0)

@@ -45,6 +45,11 @@ pub struct RoutesArgs {
     /// arrivals they have in the file of all flows; `_ramp` or `_freeway` in the name).
     #[arg(long, value_enum, default_value = "all")]
     streams: StreamChoice,
+    /// Files SUMO loads with the route files (a configuration's additional files),
+    /// comma-separated: their vehicle types and routes count as the base file's and are not
+    /// written again.
+    #[arg(long, value_delimiter = ',')]
+    additional: Vec<PathBuf>,
     /// Output directory.
     #[arg(long)]
     out: PathBuf,
@@ -115,6 +120,7 @@ pub fn run(args: RoutesArgs) -> Result<ExitCode> {
         begin: args.begin,
         duration: args.duration,
         streams: args.streams.into(),
+        loaded: args.additional.clone(),
     };
     let manifest = generate(&args.base, &merges, &spec, &args.out)?;
     for note in base_notes(&args.base, &manifest) {

@@ -148,6 +148,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
             begin: files.begin,
             duration: args.end,
             streams,
+            loaded: files.additional.clone(),
         };
         let manifest = generate(&base, &merges, &spec, &dir.join("routes"))?;
         if !noted.replace(true) {
@@ -238,7 +239,7 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
     }
     // The merge's own cost: each seed's ramp and freeway flows in runs of their own, when the
     // base file has both (a ramp flow drives along a ramp of merge.toml).
-    let (ramp_flows, freeway_flows) = flows_by_stream(&base, &merges)?;
+    let (ramp_flows, freeway_flows) = flows_by_stream(&base, &files.additional, &merges)?;
     let both = ramp_flows > 0 && freeway_flows > 0;
     let mut alone: Vec<(u64, Trips)> = Vec::new();
     for streams in [Streams::Ramp, Streams::Freeway].into_iter().filter(|_| both) {
