@@ -460,8 +460,9 @@ fn shape_of(doc: &roxmltree::Document, id: &str) -> Vec<(f64, f64)> {
     points
         .split_whitespace()
         .filter_map(|p| {
-            let (x, y) = p.split_once(',')?;
-            Some((x.parse().ok()?, y.parse().ok()?))
+            // `x,y`, or `x,y,z` in networks with elevation (OSM, OpenDRIVE imports).
+            let mut xyz = p.split(',').map(str::parse::<f64>);
+            Some((xyz.next()?.ok()?, xyz.next()?.ok()?))
         })
         .collect()
 }
@@ -719,6 +720,15 @@ mod tests {
                 ("a_2", 80.0, &[":j_0_2".to_owned()][..])
             ]
         );
+        // The same with elevation (`x,y,z` points, as OSM and OpenDRIVE imports have them).
+        let raised = three_lanes("0.00,2.00,5.00 10.00,-3.00,5.50 20.00,-8.00,6.00")
+            .replace(r#",-8.00""#, r#",-8.00,6.00""#)
+            .replace(r#",-4.80""#, r#",-4.80,6.00""#)
+            .replace(r#",-1.60""#, r#",-1.60,6.00""#);
+        let doc = roxmltree::Document::parse(&raised).unwrap();
+        let p = LanePositions::of_network(&doc, &lanes(&["r_0"]), &lanes(&["a_0", "o_0"]), 0.0).unwrap();
+        assert_eq!(p.crossing(), across.crossing());
+        assert!(raised.contains("20.00,-4.80,6.00"));
         // From the right into lane 0, netconvert's on-ramp: it yields to lanes 1 and 2 too by
         // SUMO's request, but never meets them; lane 0 is the target lane, the entry rule's.
         assert!(positions("0.00,-12.00 20.00,-8.00").crossing().is_empty());
