@@ -362,6 +362,21 @@ fn the_capacity_sweep_finds_where_a_one_lane_merge_stops_taking_more_vehicles() 
     ] {
         refused("--capacity", capacity, &sumocfg, &dir.join("bad"), message);
     }
+    // A configuration that scales its demand itself would scale the study's route files again.
+    let scaled = sumocfg.with_file_name("scaled.sumocfg");
+    let text = std::fs::read_to_string(&sumocfg).unwrap();
+    std::fs::write(
+        &scaled,
+        text.replace("</configuration>", "<scale value=\"0.5\"/></configuration>"),
+    )
+    .unwrap();
+    refused(
+        "--capacity",
+        "1,2",
+        &scaled,
+        &dir.join("bad"),
+        "sets scale 0.5: SUMO would scale",
+    );
 }
 
 #[cfg(feature = "sumo")]

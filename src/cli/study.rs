@@ -92,6 +92,17 @@ pub fn run(args: StudyArgs) -> Result<ExitCode> {
         .unwrap_or_else(|| args.sumocfg.with_file_name("merge.toml"));
     let mut merges = MergeGeometry::load_all(&merge_path)?;
     let files = mpgdrive::sumo::inputs::config_files(&args.sumocfg)?;
+    if let Some(scale) = files
+        .scale
+        .as_ref()
+        .filter(|s| s.trim().parse::<f64>() != Ok(1.0))
+    {
+        return Err(usage(format!(
+            "--sumocfg {} sets scale {scale}: SUMO would scale the study's route files again; \
+             remove it and give the demand with --demand (or --capacity)",
+            args.sumocfg.display()
+        )));
+    }
     for geometry in &merges {
         mpgdrive::sumo::inputs::check_geometry(geometry, &merge_path, &files.net)?;
     }

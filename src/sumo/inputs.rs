@@ -87,6 +87,8 @@ pub struct ConfigFiles {
     pub step_length: Option<f64>,
     /// `begin` (s), the time the simulation starts at (SUMO's default 0).
     pub begin: f64,
+    /// `scale`, SUMO's demand scale, if the configuration sets one.
+    pub scale: Option<String>,
     /// The ways of running SUMO the configuration asks for that are not the policy's world:
     /// `step-method.ballistic` (positions move by the mean of the old and new speed, where the
     /// world's move by one speed per step) and `mesosim` (queues on edges, without lanes).
@@ -153,6 +155,10 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
         .into_iter()
         .filter(|o| set(o))
         .collect();
+    let scale = (doc.descendants())
+        .find(|n| n.has_tag_name("scale"))
+        .and_then(|n| n.attribute("value"))
+        .map(str::to_owned);
     let ssm_option = doc
         .descendants()
         .any(|n| n.has_tag_name("device.ssm.probability") || n.has_tag_name("device.ssm.explicit"));
@@ -162,6 +168,7 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
         additional: list("additional-files"),
         step_length,
         begin,
+        scale,
         other_dynamics,
         ssm_option,
     })
