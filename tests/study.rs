@@ -159,6 +159,18 @@ fn the_merge_costs_what_the_streams_lose_together_beyond_what_they_lose_apart() 
         "{md}"
     );
     assert!(md.contains("| 30% | 25.0% |"), "{md}");
+    // Apart 10.45 s against SUMO's drivers' 10.5 s at 30%: a cost of 0.05 s, under 1% of their
+    // time loss, is no denominator (the game "saved" 2,000% of it), and at share 0 it says so.
+    assert_eq!(merge_cost_removed(&r[2], 10.45), None);
+    let md = markdown(&r, Some(Spread::of(&[10.4, 10.5])));
+    assert!(
+        md.contains("too little here to say what part of it the game saves"),
+        "{md}"
+    );
+    assert!(
+        !md.contains("| 30% |  |") && !md.contains("over the merge's cost"),
+        "{md}"
+    );
 }
 
 /// A one-lane 30 m/s freeway with a 150 m acceleration lane, 900 + 400 veh/h for 120 s, built

@@ -118,15 +118,21 @@ pub fn apart(ramp: &Trips, freeway: &Trips) -> Option<f64> {
     (n > 0).then(|| (ramp.time_loss + freeway.time_loss) / n as f64)
 }
 
+/// Below this share of SUMO's drivers' time loss a merge's cost is too small to divide by: on
+/// SUMO's `tools/game/highway` network the merge cost 0.01 s of 50 s per vehicle, and the game
+/// "saved" 7,650% of it.
+pub const MIN_MERGE_COST: f64 = 0.01;
+
 /// The part of the merge's cost the game saves at `row`'s share: SUMO's drivers' mean time
 /// loss of every vehicle less the game's, over SUMO's drivers' less the streams' apart
-/// (`apart`, s per vehicle); none where a figure is missing or the merge costs nothing.
+/// (`apart`, s per vehicle); none where a figure is missing or the merge costs less than
+/// [`MIN_MERGE_COST`] of SUMO's drivers' time loss.
 pub fn merge_cost_removed(row: &ShareRow, apart: f64) -> Option<f64> {
     let (g, s) = (
         row.game.get(&Quantity::TimeLoss)?.mean,
         row.sumo.get(&Quantity::TimeLoss)?.mean,
     );
-    (s > apart).then(|| (s - g) / (s - apart))
+    (s - apart > MIN_MERGE_COST * s).then(|| (s - g) / (s - apart))
 }
 
 /// SUMO's SSM conflicts of one run.
@@ -438,8 +444,7 @@ pub fn markdown(rows: &[ShareRow], apart: Option<Spread>) -> String {
             "\n## The merge's own cost\n\nOn the same arrivals, SUMO's drivers with the ramp's flows and the \
              freeway's flows in separate runs (the streams never meet) lose {:.2} ± {:.2} s per vehicle: \
              {:.3} times SUMO's drivers' {:.2} s with both streams at a share of {:.0}%. The difference, \
-             {:.2} s per vehicle, is what the merge costs. The part of it the game saves:\n\n\
-             | controllable share | SUMO's drivers' time loss less the game's, over the merge's cost |\n|---|---|\n",
+             {:.2} s per vehicle, is what the merge costs.",
             a.mean,
             a.sd,
             a.mean / sumo.mean,
@@ -447,6 +452,15 @@ pub fn markdown(rows: &[ShareRow], apart: Option<Spread>) -> String {
             rows[0].share * 100.0,
             sumo.mean - a.mean
         );
+        if sumo.mean - a.mean <= MIN_MERGE_COST * sumo.mean {
+            md += &format!(
+                " That is less than {:.0}% of their time loss: too little here to say what part of it the game saves.\n",
+                MIN_MERGE_COST * 100.0
+            );
+            return md;
+        }
+        md += " The part of it the game saves:\n\n\
+               | controllable share | SUMO's drivers' time loss less the game's, over the merge's cost |\n|---|---|\n";
         for r in rows.iter().filter(|r| r.share > 0.0) {
             let cell =
                 merge_cost_removed(r, a.mean).map_or_else(|| "-".into(), |x| format!("{:.1}%", x * 100.0));
