@@ -683,3 +683,45 @@ fn at_a_stop_sign_every_vehicle_stands_at_its_line_before_it_goes_on() {
         }
     }
 }
+
+#[test]
+fn a_configuration_that_turns_the_collision_check_off_still_counts_collisions() {
+    // Ramp drivers that ignore the road's vehicles at the junction (SUMO's `jmIgnoreFoeProb`)
+    // collide with them; a configuration with `collision.action none` hid every one of those
+    // collisions from the metrics. It runs as SUMO's default (teleport) does.
+    let dir = fresh_dir("public-collision-check");
+    netconvert(
+        &dir,
+        r#"<node id="a" x="0" y="0"/><node id="j" x="600" y="0"/><node id="b" x="1000" y="0"/><node id="r" x="200" y="-150"/>"#,
+        r#"<edge id="in" from="a" to="j" numLanes="2" speed="30" priority="3"/><edge id="out" from="j" to="b" numLanes="2" speed="30" priority="3"/>
+        <edge id="ramp" from="r" to="j" numLanes="1" speed="20" priority="1"/>"#,
+        &[],
+    );
+    std::fs::write(
+        dir.join("c.rou.xml"),
+        r#"<routes><vType id="car" length="5" accel="2.6" decel="4.5" sigma="0.5"/>
+        <vType id="blind" length="5" accel="2.6" decel="4.5" sigma="0.5" jmIgnoreFoeProb="1" jmIgnoreFoeSpeed="50"/>
+        <flow id="f" type="car" from="in" to="out" begin="0" end="300" vehsPerHour="2400" departLane="best" departSpeed="max"/>
+        <flow id="r" type="blind" from="ramp" to="out" begin="0" end="300" vehsPerHour="500" departSpeed="max"/></routes>"#,
+    )
+    .unwrap();
+    let out = mpgdrive_in(&dir, &["net", "inspect", "net.net.xml", "--out", "merge.toml"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let collisions = |processing: &str| {
+        std::fs::write(
+            dir.join("merge.sumocfg"),
+            format!(
+                r#"<configuration><input><net-file value="net.net.xml"/><route-files value="c.rou.xml"/></input>
+                <time><step-length value="0.1"/></time><processing>{processing}</processing></configuration>"#
+            ),
+        )
+        .unwrap();
+        drive(&dir, "sumo", &["--end", "300", "--seed", "0"])[0]["collisions"]
+            .as_array()
+            .unwrap()
+            .len()
+    };
+    let default = collisions("");
+    assert!(default > 0, "no collision to count");
+    assert_eq!(collisions(r#"<collision.action value="none"/>"#), default);
+}

@@ -184,6 +184,12 @@ mod with_sumo {
                 config.sim.dt
             );
         }
+        if files.no_collision_check && args.attach.is_none() {
+            eprintln!(
+                "cosim: {} sets collision.action none: SUMO checks collisions (its default, teleport), the metrics' first figure",
+                args.sumocfg.display()
+            );
+        }
         if !files.other_dynamics.is_empty() && args.attach.is_none() {
             eprintln!(
                 "cosim: {} sets {}: SUMO runs with the policy's world's update (one speed per step, microscopic), every controller alike",
@@ -251,6 +257,7 @@ mod with_sumo {
             timespace: !args.no_diagrams,
             equip_ssm: args.ssm_all || !facts.ssm,
             step_length: step_differs.then_some(config.sim.dt),
+            check_collisions: files.no_collision_check,
         };
         Ok((config, settings))
     }

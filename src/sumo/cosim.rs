@@ -74,6 +74,9 @@ pub struct CosimSettings {
     /// SUMO's step length (s), set on its command line where the configuration sets another or
     /// none (the policy's `sim.dt`).
     pub step_length: Option<f64>,
+    /// SUMO checks collisions (its default, `teleport`) where the configuration turns the
+    /// check off (`collision.action none`): collisions are the metrics' first figure.
+    pub check_collisions: bool,
 }
 
 /// Errors of a co-sim run.
@@ -279,6 +282,9 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
     }
     if let Some(step) = settings.step_length {
         args.extend(["--step-length".into(), step.to_string()]);
+    }
+    if settings.check_collisions {
+        args.extend(["--collision.action".into(), "teleport".into()]);
     }
     if let Some(routes) = &settings.route_files {
         args.extend(["--route-files".into(), absolute(routes)]);

@@ -89,6 +89,8 @@ pub struct ConfigFiles {
     pub begin: f64,
     /// `scale`, SUMO's demand scale, if the configuration sets one.
     pub scale: Option<String>,
+    /// The configuration turns SUMO's collision check off (`collision.action none`).
+    pub no_collision_check: bool,
     /// The ways of running SUMO the configuration asks for that are not the policy's world:
     /// `step-method.ballistic` (positions move by the mean of the old and new speed, where the
     /// world's move by one speed per step) and `mesosim` (queues on edges, without lanes).
@@ -155,6 +157,9 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
         .into_iter()
         .filter(|o| set(o))
         .collect();
+    let no_collision_check = (doc.descendants()).any(|n| {
+        n.has_tag_name("collision.action") && n.attribute("value").is_some_and(|v| v.trim() == "none")
+    });
     let scale = (doc.descendants())
         .find(|n| n.has_tag_name("scale"))
         .and_then(|n| n.attribute("value"))
@@ -169,6 +174,7 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
         step_length,
         begin,
         scale,
+        no_collision_check,
         other_dynamics,
         ssm_option,
     })
