@@ -847,14 +847,11 @@ impl Controller {
             }
             // SUMO's drivers stand at a stop sign's line before they go on (speed below SUMO's
             // halting speed, 0.1 m/s); from then on the link is a minor one.
-            let stop_sign = (self.positions.stop_sign(&on))
-                .map(|line| (line - front).max(0.0))
-                .filter(|&d| {
-                    if s.speed < HALTING_SPEED && d <= STOP_SIGN_REACH {
-                        self.stood.insert(id.clone(), on.clone());
-                    }
-                    self.stood.get(&id) != Some(&on)
-                });
+            let stop_sign = (self.positions.stop_sign(&on)).map(|line| (line - front).max(0.0));
+            if stop_sign.is_some_and(|d| s.speed < HALTING_SPEED && d <= STOP_SIGN_REACH) {
+                self.stood.insert(id.clone(), on.clone());
+            }
+            let stop_sign = stop_sign.filter(|_| self.stood.get(&id) != Some(&on));
             // Past the line it had not stood at (a car that left the lane sideways is gone).
             if signs_ahead.get(&id).is_some_and(|&line| x > line) {
                 self.stop_sign_passes += 1;
