@@ -136,11 +136,12 @@ pub(super) struct Base {
     pub(super) left_out: Vec<String>,
 }
 
-/// The vehicle types, type distributions, routes and route distributions SUMO loads with the
-/// route files from other files (a configuration's additional files), as one `<routes>`
-/// document: the base file's flows and vehicles may use them, and a generated file must not
-/// define them again.
-pub(super) fn loaded_elements(paths: &[std::path::PathBuf]) -> Result<String, RoutesError> {
+/// The nodes under the root of each file of `paths` that `keep` keeps, in file order, under one
+/// `<routes>` root.
+pub(super) fn under_one_root(
+    paths: &[std::path::PathBuf],
+    keep: impl Fn(&roxmltree::Node) -> bool,
+) -> Result<String, RoutesError> {
     let mut out = String::from("<routes>\n");
     for path in paths {
         let text = crate::sumo::inputs::read_sumo_file(path).map_err(|source| RoutesError::Io {
@@ -151,18 +152,22 @@ pub(super) fn loaded_elements(paths: &[std::path::PathBuf]) -> Result<String, Ro
             path: path.clone(),
             message: e.to_string(),
         })?;
-        let kept = ["vType", "vTypeDistribution", "route", "routeDistribution"];
-        for node in doc
-            .root_element()
-            .children()
-            .filter(|n| kept.contains(&n.tag_name().name()))
-        {
+        for node in doc.root_element().children().filter(|n| keep(n)) {
             out += &text[node.range()];
-            out.push('\n');
         }
+        out.push('\n');
     }
     out += "</routes>\n";
     Ok(out)
+}
+
+/// The vehicle types, type distributions, routes and route distributions SUMO loads with the
+/// route files from other files (a configuration's additional files), as one `<routes>`
+/// document: the base file's flows and vehicles may use them, and a generated file must not
+/// define them again.
+pub(super) fn loaded_elements(paths: &[std::path::PathBuf]) -> Result<String, RoutesError> {
+    let kept = ["vType", "vTypeDistribution", "route", "routeDistribution"];
+    under_one_root(paths, |n| kept.contains(&n.tag_name().name()))
 }
 
 /// The base route file at `path` (its `text`) as the generator reads it, with the elements of

@@ -24,6 +24,7 @@
 use crate::atomic;
 use crate::batch::route_base::{
     Explicit, Flow, TypeShares, controllable_type, controllable_types, loaded_elements, parse_base,
+    under_one_root,
 };
 use crate::sumo::geometry::MergeGeometry;
 use rand::{Rng, SeedableRng};
@@ -175,24 +176,7 @@ pub enum RoutesError {
 /// elements under each file's root, in turn, under one `<routes>`. A configuration that keeps
 /// its vehicle types in one file and its flows in another is one demand.
 pub fn combined_route_files(paths: &[PathBuf]) -> Result<String, RoutesError> {
-    let mut out = String::from("<routes>\n");
-    for path in paths {
-        let text = crate::sumo::inputs::read_sumo_file(path).map_err(|source| RoutesError::Io {
-            path: path.clone(),
-            source,
-        })?;
-        let doc = roxmltree::Document::parse(&text).map_err(|e| RoutesError::Base {
-            path: path.clone(),
-            message: e.to_string(),
-        })?;
-        let root = doc.root_element();
-        if let (Some(first), Some(last)) = (root.first_child(), root.last_child()) {
-            out += &text[first.range().start..last.range().end];
-            out.push('\n');
-        }
-    }
-    out += "</routes>\n";
-    Ok(out)
+    under_one_root(paths, |_| true)
 }
 
 /// How many of the flows and explicit vehicles of the base file at `base_path` drive along a
