@@ -621,7 +621,7 @@ fn a_configuration_with_the_ballistic_update_or_mesoscopic_runs_in_the_policys_w
 
 #[test]
 fn a_configuration_that_begins_later_runs_its_duration_from_its_begin() {
-    // Public scenarios begin at the hour they model (MoST at 14,400 s): the same traffic an hour
+    // Public scenarios begin at the hour they model (6:00 is 21,600 s): the same traffic an hour
     // later, in a configuration that begins at "1:00:00", gives the same run an hour later.
     let dir = temp_dir("begin");
     let routes = std::fs::read_to_string("sumo_nets/single_lane_merge/merge.rou.xml").unwrap();

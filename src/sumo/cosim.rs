@@ -240,7 +240,7 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         "--seed".into(),
         settings.seed.to_string(),
         // No end of SUMO's own: the run ends `settings.end` after the configuration's begin
-        // (`more_to_run`), which public scenarios set to the hour they model (MoST's 14,400 s).
+        // (`more_to_run`), which public scenarios set to the hour they model (6:00 is 21,600 s).
         "--end".into(),
         "-1".into(),
         // The policy's world moves each vehicle by one speed per step, on lanes: SUMO runs so
