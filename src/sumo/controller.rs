@@ -102,9 +102,8 @@ const RIGHT_OF_WAY: i32 = 8;
 /// The time gap (s) a ramp vehicle leaves before a crossing lane's vehicle reaches the junction
 /// ([`Controller::crossing_holds`]): SUMO's `jmTimegapMinor` default.
 const CROSSING_TIME_GAP: f64 = 1.0;
-/// The speed (m/s) below which a crossing lane's vehicle counts as crawling towards the junction.
-const CRAWL: f64 = 0.1;
-/// SUMO's halting speed (m/s): below it a vehicle stands (its waiting time runs).
+/// SUMO's halting speed (m/s): below it a vehicle stands (its waiting time runs), and a crossing
+/// lane's vehicle counts as crawling towards the junction.
 const HALTING_SPEED: f64 = 0.1;
 /// How far before a stop sign's line (m) a vehicle's front may stand to count as stopped at it
 /// (the stopping bound halts it 0.1 m before the line; SUMO's drivers halt 0.1 m or less before it).
@@ -1364,7 +1363,7 @@ impl Controller {
                 if to_junction > s.speed * tau + s.speed * s.speed / (2.0 * self.rules.gate.b_safe) {
                     continue; // it can still stop before the junction, as the entry rule asks
                 }
-                first = first.min(to_junction / s.speed.max(CRAWL));
+                first = first.min(to_junction / s.speed.max(HALTING_SPEED));
             }
         }
         Ok(first)

@@ -128,42 +128,34 @@ pub fn config_files(sumocfg: &Path) -> Result<ConfigFiles, InputError> {
     let net = list("net-file")
         .pop()
         .ok_or_else(|| content(sumocfg, "names no network (<net-file value=\"...\"/>)".into()))?;
-    let step = doc.descendants().find(|n| n.has_tag_name("step-length"));
-    let step_length = match step.and_then(|n| n.attribute("value")) {
+    // An option's value, trimmed, where the configuration sets it.
+    let option = |name: &str| {
+        (doc.descendants())
+            .find(|n| n.has_tag_name(name))
+            .and_then(|n| n.attribute("value"))
+            .map(str::trim)
+    };
+    let step_length = match option("step-length") {
         None => None,
         Some(v) => Some(
-            v.trim()
-                .parse::<f64>()
+            v.parse::<f64>()
                 .ok()
                 .filter(|x| x.is_finite() && *x > 0.0)
                 .ok_or_else(|| content(sumocfg, format!("step-length {v:?} is not a positive number")))?,
         ),
     };
-    let begin = match doc
-        .descendants()
-        .find(|n| n.has_tag_name("begin"))
-        .and_then(|n| n.attribute("value"))
-    {
+    let begin = match option("begin") {
         None => 0.0,
         Some(v) => sumo_time(v)
             .filter(|t| *t >= 0.0)
             .ok_or_else(|| content(sumocfg, format!("begin {v:?} is not a time of 0 s or later")))?,
     };
-    let set = |option: &str| {
-        (doc.descendants())
-            .any(|n| n.has_tag_name(option) && n.attribute("value").is_some_and(|v| v.trim() == "true"))
-    };
     let other_dynamics = ["step-method.ballistic", "mesosim"]
         .into_iter()
-        .filter(|o| set(o))
+        .filter(|o| option(o) == Some("true"))
         .collect();
-    let no_collision_check = (doc.descendants()).any(|n| {
-        n.has_tag_name("collision.action") && n.attribute("value").is_some_and(|v| v.trim() == "none")
-    });
-    let scale = (doc.descendants())
-        .find(|n| n.has_tag_name("scale"))
-        .and_then(|n| n.attribute("value"))
-        .map(str::to_owned);
+    let no_collision_check = option("collision.action") == Some("none");
+    let scale = option("scale").map(str::to_owned);
     let ssm_option = doc
         .descendants()
         .any(|n| n.has_tag_name("device.ssm.probability") || n.has_tag_name("device.ssm.explicit"));
