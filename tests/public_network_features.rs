@@ -725,3 +725,58 @@ fn a_configuration_that_turns_the_collision_check_off_still_counts_collisions() 
     assert!(default > 0, "no collision to count");
     assert_eq!(collisions(r#"<collision.action value="none"/>"#), default);
 }
+
+#[test]
+fn ssm_collisions_that_sumos_collision_check_does_not_find_are_no_conflicts() {
+    // On a curved junction merge SSM's conflict area reaches past the lanes: a ramp vehicle
+    // standing at its stop line beside a passing car is an SSM "collision" (type 111, TTC 0),
+    // where SUMO's collision check (junctions included) finds no overlap. Before, such an ego
+    // was "in a conflict" at TTC 0 and the study counted it severe.
+    let dir = fresh_dir("public-ssm-collision");
+    let out = bin()
+        .args(["net", "build", "--form", "junction", "--curved", "--speed", "30"])
+        .args(["--lane-flow", "600", "--ramp-flow", "400", "--duration", "120", "--out"])
+        .arg(dir.join("net"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let args = ["--controllers", "sumo", "--seed", "1", "--end", "120", "--ssm-all", "--no-diagrams"];
+    let (runs, _) = common::cosim_json(&args, &dir.join("net/merge.sumocfg"), &dir.join("run"));
+    let run = &runs[0];
+    assert_eq!(run["collisions"].as_array().unwrap().len(), 0);
+    // Each vehicle's smallest TTC over its encounters within the thresholds (TTC < 3 s or
+    // DRAC > 3 m/s^2), read here from SUMO's file without SSM's collisions.
+    let text = std::fs::read_to_string(dir.join("run/ssm-sumo.xml")).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let (mut inferred, mut expected) = (Vec::new(), std::collections::HashMap::new());
+    for c in doc.descendants().filter(|n| n.has_tag_name("conflict")) {
+        let ego = c.attribute("ego").unwrap();
+        let value = |tag: &str| {
+            let n = c.children().find(|n| n.has_tag_name(tag)).unwrap();
+            (n.attribute("value").unwrap().parse::<f64>().ok(), n.attribute("type").unwrap())
+        };
+        let (ttc, kind) = value("minTTC");
+        let ttc = if kind == "111" {
+            inferred.push(ego.to_owned());
+            None
+        } else {
+            ttc
+        };
+        let drac = value("maxDRAC").0;
+        if ttc.is_some_and(|t| t < 3.0) || drac.is_some_and(|d| d > 3.0) {
+            let slot = expected.entry(ego.to_owned()).or_insert(None);
+            if let Some(t) = ttc {
+                *slot = Some(slot.map_or(t, |m: f64| m.min(t)));
+            }
+        }
+    }
+    let egos = run["egos"].as_array().unwrap();
+    assert!(
+        egos.iter().any(|e| inferred.iter().any(|i| e["id"] == i.as_str())),
+        "no ramp vehicle in an SSM collision: {inferred:?}"
+    );
+    for e in egos {
+        let id = e["id"].as_str().unwrap();
+        assert_eq!(e["ssm_min_ttc"].as_f64(), expected.get(id).copied().flatten(), "{id}");
+    }
+}

@@ -12,8 +12,9 @@
 //! - **throughput**: vehicles that finished their trip, per hour of the run (every route of a
 //!   merge network passes the merge);
 //! - **conflicts** per vehicle-km: SUMO's SSM conflicts at the thresholds `cosim` sets (TTC < 3 s
-//!   or DRAC > 3 m/s^2), and the severe ones (minimum TTC below [`SEVERE_TTC`]), over the
-//!   distance every vehicle drove (`routeLength`).
+//!   or DRAC > 3 m/s^2; not the collisions SSM infers, [`crate::sumo::ssm`]), and the severe
+//!   ones (minimum TTC below [`SEVERE_TTC`]), over the distance every vehicle drove
+//!   (`routeLength`).
 //!
 //! The merge's own cost: the same arrivals with the ramp's flows and the freeway's flows in
 //! separate runs of SUMO's drivers, where the streams never meet ([`apart`]). Their time loss
@@ -24,6 +25,7 @@
 use crate::batch::summary::mean_sd;
 use crate::render::RenderError;
 use crate::render::charts::{Panel, Series, panels_png};
+use crate::sumo::ssm;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -145,21 +147,14 @@ pub struct Conflicts {
 }
 
 impl Conflicts {
-    /// Reads an SSM output file.
+    /// Reads an SSM output file (the conflicts [`ssm::conflicts`] counts).
     pub fn read(path: &Path) -> Result<Conflicts, StudyError> {
         let text = read(path)?;
-        let doc = roxmltree::Document::parse(&text).map_err(|e| content(path, e.to_string()))?;
-        let mut out = Conflicts::default();
-        for c in doc.descendants().filter(|n| n.has_tag_name("conflict")) {
-            out.all += 1;
-            let ttc = c
-                .children()
-                .find(|n| n.has_tag_name("minTTC"))
-                .and_then(|n| n.attribute("value"))
-                .and_then(|v| v.parse::<f64>().ok());
-            out.severe += usize::from(ttc.is_some_and(|t| t < SEVERE_TTC));
-        }
-        Ok(out)
+        let conflicts = ssm::conflicts(&text).map_err(|e| content(path, e.to_string()))?;
+        Ok(Conflicts {
+            all: conflicts.len(),
+            severe: conflicts.iter().filter(|c| c.ttc_below(SEVERE_TTC)).count(),
+        })
     }
 }
 

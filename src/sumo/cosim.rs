@@ -19,6 +19,7 @@ use crate::sumo::geometry::MergeGeometry;
 use crate::sumo::kind::ControllerKind;
 use crate::sumo::positions::LanePositions;
 use crate::sumo::profile::{self, BandSpeed, SpeedBands};
+use crate::sumo::ssm;
 use crate::sumo::{Backend, Sumo, SumoError};
 use serde::Serialize;
 use std::collections::{HashMap, HashSet};
@@ -273,7 +274,7 @@ fn sumo_args(settings: &CosimSettings, binary: &str, tripinfo: &Path, ssm: &Path
         "--device.ssm.measures".into(),
         "TTC,DRAC".into(),
         "--device.ssm.thresholds".into(),
-        "3.0,3.0".into(),
+        format!("{},{}", ssm::TTC_THRESHOLD, ssm::DRAC_THRESHOLD),
         "--device.ssm.range".into(),
         "50.0".into(),
     ];
@@ -621,33 +622,25 @@ pub struct SsmRecord {
     pub worst: Vec<(String, f64)>,
 }
 
-/// Reads SUMO's SSM output ("NA" values skipped).
+/// Reads SUMO's SSM output: the conflicts [`ssm::conflicts`] counts.
 pub fn read_ssm(path: &Path) -> Result<SsmRecord, CosimError> {
     let text = read_xml(path)?;
-    let doc = parse_xml(path, &text)?;
+    let conflicts = ssm::conflicts(&text).map_err(|e| CosimError::Output {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
     let mut out = SsmRecord::default();
-    for conflict in doc.descendants().filter(|n| n.has_tag_name("conflict")) {
-        let Some(ego) = conflict.attribute("ego") else {
-            continue;
-        };
-        let entry = out.extremes.entry(ego.to_owned()).or_default();
-        let (mut ttc_at, mut drac_at) = (None, None);
-        for child in conflict.children().filter(|n| n.is_element()) {
-            let num = |k: &str| child.attribute(k).and_then(|v| v.parse::<f64>().ok());
-            match (child.tag_name().name(), num("value")) {
-                ("minTTC", Some(v)) => {
-                    entry.0 = Some(entry.0.map_or(v, |m| m.min(v)));
-                    ttc_at = num("time");
-                }
-                ("maxDRAC", Some(v)) => {
-                    entry.1 = Some(entry.1.map_or(v, |m| m.max(v)));
-                    drac_at = num("time");
-                }
-                _ => {}
-            }
+    for c in conflicts {
+        let entry = out.extremes.entry(c.ego.clone()).or_default();
+        if let Some(t) = c.min_ttc {
+            entry.0 = Some(entry.0.map_or(t.value, |m| m.min(t.value)));
         }
-        if let Some(t) = ttc_at.or(drac_at) {
-            out.worst.push((ego.to_owned(), t));
+        if let Some(d) = c.max_drac {
+            entry.1 = Some(entry.1.map_or(d.value, |m| m.max(d.value)));
+        }
+        let worst = c.min_ttc.and_then(|t| t.time);
+        if let Some(t) = worst.or(c.max_drac.and_then(|d| d.time)) {
+            out.worst.push((c.ego, t));
         }
     }
     Ok(out)

@@ -19,6 +19,7 @@ pub mod inspect;
 pub mod kind;
 pub mod positions;
 pub mod profile;
+pub mod ssm;
 
 #[cfg(feature = "sumo")]
 pub use controller::{ControlModes, Controller, EgoRecord};
