@@ -552,3 +552,34 @@ fn an_ego_held_at_the_lanes_end_brakes_no_harder_than_sumos_driver_behind_it_can
         .collect();
     assert!(severe.is_empty(), "TTC below 1.5 s: {severe:?}");
 }
+
+#[test]
+fn egos_held_at_a_junction_stop_line_slow_early_enough_to_stay_out_of_severe_conflicts() {
+    // The zoo's `junction-v30-curved` at the study's 30% controllable and demand 1.2: the first
+    // ego ran at 20 m/s to 22 m before the stop line and braked at g there, and SUMO's SSM,
+    // extrapolating it into the junction behind the players passing ahead, put it at a TTC of
+    // 1.17 s (SUMO seed 1) and 1.02 s (seed 3). Planned at b_safe, as at a stop sign, its stop
+    // keeps every ego out of the study's severe conflicts (TTC < 1.5 s).
+    let root = Outside::new("junction-stop-line");
+    let dir = root.0.join("net");
+    build(&dir, "--form junction --speed 30 --lane-flow 600 --curved --ramp-flow 400 --duration 600");
+    let cache = root.0.join("cache");
+    let out = mpgdrive_in(&dir, &cache)
+        .args(["routes", "--base", "merge.rou.xml", "--merge", "merge.toml", "--scales", "1.2"])
+        .args(["--controllable-share", "0.3", "--mainline-controllable-share", "0.3"])
+        .args(["--seeds", "1,3", "--duration", "600", "--out", "routes"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    for seed in ["1", "3"] {
+        let route = format!("routes/merge_d1.20_m0.30_s{seed}.rou.xml");
+        let args = ["--route-files", &route, "--controllers", "mpg", "--seed", seed];
+        let runs = cosim_in(&dir, &cache, &[&args[..], &["--end", "60", "--ssm-all"]].concat());
+        let egos = runs[0]["egos"].as_array().unwrap();
+        assert!(!egos.is_empty(), "seed {seed}");
+        for e in egos {
+            let ttc = e["ssm_min_ttc"].as_f64().unwrap_or(f64::INFINITY);
+            assert!(ttc >= mpgdrive::batch::penetration::SEVERE_TTC, "seed {seed}: {e}");
+        }
+    }
+}

@@ -1119,7 +1119,7 @@ impl Controller {
                 };
                 let scene_leader = nb.lane_leader.map(|l| scene_cars[si][l]);
                 let mut rules = self.rules_for(&cars[j], scene_leader.map(|l| &cars[l]));
-                if self.stop_brakes_sumos_follower_hard(cars, j) {
+                if self.stops_at_b_safe(cars, j) {
                     rules.gate.lane_end_brake = rules.gate.lane_end_brake.min(rules.gate.b_safe);
                 }
                 // A junction merge's ramp vehicle enters where it crosses the stop line, so the
@@ -1205,12 +1205,23 @@ impl Controller {
         applied
     }
 
+    /// Whether the stop the road's end holds ramp vehicle `cars[j]` to is planned at
+    /// `sim.b_safe` (harder only when it must) rather than at `sim.lane_end_brake`: at a
+    /// junction merge's stop line always, as at a stop sign or a red light. Braking at `g` from
+    /// the last metres, an ego that ran at 20 m/s to 22 m before the line crossed SSM's
+    /// severe TTC (1.17 s) to the players passing ahead of it, as SUMO extrapolates it into
+    /// the junction (the zoo's `junction-v30-curved`, 30% controllable, demand 1.2, SUMO seed
+    /// 1; with this, no ego of seeds 0-7 does). At an acceleration lane's end only where
+    /// [`Self::stop_brakes_sumos_follower_hard`]: there a gentler stop everywhere had the
+    /// egos enter slower, closer to the target-lane car behind (docs/experiments.md).
+    fn stops_at_b_safe(&self, cars: &[Car], j: usize) -> bool {
+        (self.is_junction() && cars[j].on_ramp) || self.stop_brakes_sumos_follower_hard(cars, j)
+    }
+
     /// Whether a stop at `sim.lane_end_brake` would ask one of SUMO's drivers behind ramp
     /// vehicle `cars[j]` on the ramp to brake harder than `sim.b_safe` (after
     /// `sim.reaction_time`) to stop behind it: the entry rule asks no more of a human follower
-    /// when a vehicle enters. Then the stop the road's end (an acceleration lane's, or a
-    /// junction's stop line) holds it to is planned at `sim.b_safe`, and harder only when it
-    /// must. The zoo's `acc60-v30` (30% controllable, demand 1.2, SUMO seed 2): an ego held at
+    /// when a vehicle enters. The zoo's `acc60-v30` (30% controllable, demand 1.2, SUMO seed 2): an ego held at
     /// the 60 m lane's end braked from 22.9 m/s to a stop at up to 9.6 m/s^2, and SUMO's
     /// driver 42 m behind it at 21 m/s came within a TTC of 1.35 s (the study's one severe
     /// conflict there; none with this, nor on `junction-v36`). The training's world has no
