@@ -49,6 +49,8 @@ pub struct LanePositions {
     /// A junction merge whose entry links are all zipper links (SUMO's `Z`), with no traffic
     /// light: SUMO's drivers there merge by arrival, the first at the junction first.
     zipper_entry: bool,
+    /// A junction merge whose last ramp lane runs beside a target lane of its edge (a lane drop).
+    lane_drop: bool,
     /// The lanes besides the ramp and target lanes whose links the entry yields to and whose
     /// paths cross its own.
     crossing: Vec<CrossingLane>,
@@ -130,7 +132,8 @@ impl LanePositions {
             .map(|(lane, _)| lane);
         // SUMO's drivers on a junction's minor road give way to all that approaches, unless they
         // can change lanes into the target lane beside them first (a lane drop).
-        let mut minor_entry = beside.is_none();
+        let target_beside = beside.is_some();
+        let mut minor_entry = !target_beside;
         let mut zipper_entry = true;
         let (form, meets) = match (&joins, beside) {
             (Some((k, _)), _) => (MergeForm::Junction, target_lanes[*k].clone()),
@@ -245,6 +248,7 @@ impl LanePositions {
             .collect::<Result<_, String>>()?;
         Ok(LanePositions {
             lanes,
+            lane_drop: form == MergeForm::Junction && target_beside,
             form,
             entry,
             road_speed,
@@ -281,6 +285,12 @@ impl LanePositions {
     /// with it).
     pub fn minor_entry(&self) -> bool {
         self.minor_entry
+    }
+
+    /// Whether the merge is a lane drop: a junction merge whose last ramp lane runs beside a
+    /// target lane of its edge, into which SUMO's drivers change lanes before it ends.
+    pub fn is_lane_drop(&self) -> bool {
+        self.lane_drop
     }
 
     /// Whether the ramp enters by zipper links without a traffic light (SUMO's `Z`, a zipper
@@ -625,7 +635,7 @@ mod tests {
         assert!(!p.is_entry(":j_1_0") && !p.is_entry("r_0"));
         // Its ramp enters by minor links: SUMO's drivers give way there; not on a zipper, where
         // they take their turn, nor behind a traffic light (neither there).
-        assert!(p.minor_entry() && !p.zipper_entry());
+        assert!(p.minor_entry() && !p.zipper_entry() && !p.is_lane_drop());
         for (from, to, zipper) in [
             (r#"state="m""#, r#"state="Z""#, true),
             (r#"state="m""#, r#"tl="j" state="o""#, false),
@@ -653,13 +663,13 @@ mod tests {
         </net>"#;
         let doc = roxmltree::Document::parse(drop).unwrap();
         let p = LanePositions::of_network(&doc, &lanes(&["i_0"]), &lanes(&["i_1", "o_0"]), 0.0).unwrap();
-        assert_eq!((p.form(), p.minor_entry()), (MergeForm::Junction, false));
+        assert_eq!((p.form(), p.minor_entry(), p.is_lane_drop()), (MergeForm::Junction, false, true));
         // The acceleration-lane network is not a junction merge.
         let doc = roxmltree::Document::parse(NET).unwrap();
         let p = LanePositions::of_network(&doc, &lanes(&["r_0", "m_0"]), &lanes(&["a_0", "m_1", "b_0"]), 0.0)
             .unwrap();
         assert_eq!(p.form(), MergeForm::AccelerationLane);
-        assert!(!p.is_entry(":j2_0") && !p.minor_entry());
+        assert!(!p.is_entry(":j2_0") && !p.minor_entry() && !p.is_lane_drop());
     }
 
     /// A three-lane road `a` -> `o` (centre lines at y = -8, -4.8 and -1.6 across the junction)
