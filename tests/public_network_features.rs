@@ -735,12 +735,29 @@ fn ssm_collisions_that_sumos_collision_check_does_not_find_are_no_conflicts() {
     let dir = fresh_dir("public-ssm-collision");
     let out = bin()
         .args(["net", "build", "--form", "junction", "--curved", "--speed", "30"])
-        .args(["--lane-flow", "600", "--ramp-flow", "400", "--duration", "120", "--out"])
+        .args([
+            "--lane-flow",
+            "600",
+            "--ramp-flow",
+            "400",
+            "--duration",
+            "120",
+            "--out",
+        ])
         .arg(dir.join("net"))
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let args = ["--controllers", "sumo", "--seed", "1", "--end", "120", "--ssm-all", "--no-diagrams"];
+    let args = [
+        "--controllers",
+        "sumo",
+        "--seed",
+        "1",
+        "--end",
+        "120",
+        "--ssm-all",
+        "--no-diagrams",
+    ];
     let (runs, _) = common::cosim_json(&args, &dir.join("net/merge.sumocfg"), &dir.join("run"));
     let run = &runs[0];
     assert_eq!(run["collisions"].as_array().unwrap().len(), 0);
@@ -753,7 +770,10 @@ fn ssm_collisions_that_sumos_collision_check_does_not_find_are_no_conflicts() {
         let ego = c.attribute("ego").unwrap();
         let value = |tag: &str| {
             let n = c.children().find(|n| n.has_tag_name(tag)).unwrap();
-            (n.attribute("value").unwrap().parse::<f64>().ok(), n.attribute("type").unwrap())
+            (
+                n.attribute("value").unwrap().parse::<f64>().ok(),
+                n.attribute("type").unwrap(),
+            )
         };
         let (ttc, kind) = value("minTTC");
         let ttc = if kind == "111" {
@@ -772,11 +792,16 @@ fn ssm_collisions_that_sumos_collision_check_does_not_find_are_no_conflicts() {
     }
     let egos = run["egos"].as_array().unwrap();
     assert!(
-        egos.iter().any(|e| inferred.iter().any(|i| e["id"] == i.as_str())),
+        egos.iter()
+            .any(|e| inferred.iter().any(|i| e["id"] == i.as_str())),
         "no ramp vehicle in an SSM collision: {inferred:?}"
     );
     for e in egos {
         let id = e["id"].as_str().unwrap();
-        assert_eq!(e["ssm_min_ttc"].as_f64(), expected.get(id).copied().flatten(), "{id}");
+        assert_eq!(
+            e["ssm_min_ttc"].as_f64(),
+            expected.get(id).copied().flatten(),
+            "{id}"
+        );
     }
 }

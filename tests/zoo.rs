@@ -562,11 +562,27 @@ fn egos_held_at_a_junction_stop_line_slow_early_enough_to_stay_out_of_severe_con
     // keeps every ego out of the study's severe conflicts (TTC < 1.5 s).
     let root = Outside::new("junction-stop-line");
     let dir = root.0.join("net");
-    build(&dir, "--form junction --speed 30 --lane-flow 600 --curved --ramp-flow 400 --duration 600");
+    build(
+        &dir,
+        "--form junction --speed 30 --lane-flow 600 --curved --ramp-flow 400 --duration 600",
+    );
     let cache = root.0.join("cache");
     let out = mpgdrive_in(&dir, &cache)
-        .args(["routes", "--base", "merge.rou.xml", "--merge", "merge.toml", "--scales", "1.2"])
-        .args(["--controllable-share", "0.3", "--mainline-controllable-share", "0.3"])
+        .args([
+            "routes",
+            "--base",
+            "merge.rou.xml",
+            "--merge",
+            "merge.toml",
+            "--scales",
+            "1.2",
+        ])
+        .args([
+            "--controllable-share",
+            "0.3",
+            "--mainline-controllable-share",
+            "0.3",
+        ])
         .args(["--seeds", "1,3", "--duration", "600", "--out", "routes"])
         .output()
         .unwrap();
@@ -579,7 +595,10 @@ fn egos_held_at_a_junction_stop_line_slow_early_enough_to_stay_out_of_severe_con
         assert!(!egos.is_empty(), "seed {seed}");
         for e in egos {
             let ttc = e["ssm_min_ttc"].as_f64().unwrap_or(f64::INFINITY);
-            assert!(ttc >= mpgdrive::batch::penetration::SEVERE_TTC, "seed {seed}: {e}");
+            assert!(
+                ttc >= mpgdrive::batch::penetration::SEVERE_TTC,
+                "seed {seed}: {e}"
+            );
         }
     }
 }

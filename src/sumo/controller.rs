@@ -1223,11 +1223,11 @@ impl Controller {
     /// Whether a stop at `sim.lane_end_brake` would ask one of SUMO's drivers behind ramp
     /// vehicle `cars[j]` on the ramp to brake harder than `sim.b_safe` (after
     /// `sim.reaction_time`) to stop behind it: the entry rule asks no more of a human follower
-    /// when a vehicle enters. The zoo's `acc60-v30` (30% controllable, demand 1.2, SUMO seed 2): an ego held at
-    /// the 60 m lane's end braked from 22.9 m/s to a stop at up to 9.6 m/s^2, and SUMO's
-    /// driver 42 m behind it at 21 m/s came within a TTC of 1.35 s (the study's one severe
-    /// conflict there; none with this, nor on `junction-v36`). The training's world has no
-    /// such drivers; behind a vehicle the policy drives, the projection keeps the gap.
+    /// when a vehicle enters. The zoo's `acc60-v30` (30% controllable, demand 1.2, SUMO seed
+    /// 2): an ego held at the 60 m lane's end braked from 22.9 m/s to a stop at up to
+    /// 9.6 m/s^2, and SUMO's driver 42 m behind it at 21 m/s came within a TTC of 1.35 s (the
+    /// study's one severe conflict there; none with this). The training's world has no such
+    /// drivers; behind a vehicle the policy drives, the projection keeps the gap.
     fn stop_brakes_sumos_follower_hard(&self, cars: &[Car], j: usize) -> bool {
         let car = &cars[j];
         let gate = &self.rules.gate;

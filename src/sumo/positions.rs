@@ -663,7 +663,10 @@ mod tests {
         </net>"#;
         let doc = roxmltree::Document::parse(drop).unwrap();
         let p = LanePositions::of_network(&doc, &lanes(&["i_0"]), &lanes(&["i_1", "o_0"]), 0.0).unwrap();
-        assert_eq!((p.form(), p.minor_entry(), p.is_lane_drop()), (MergeForm::Junction, false, true));
+        assert_eq!(
+            (p.form(), p.minor_entry(), p.is_lane_drop()),
+            (MergeForm::Junction, false, true)
+        );
         // The acceleration-lane network is not a junction merge.
         let doc = roxmltree::Document::parse(NET).unwrap();
         let p = LanePositions::of_network(&doc, &lanes(&["r_0", "m_0"]), &lanes(&["a_0", "m_1", "b_0"]), 0.0)
