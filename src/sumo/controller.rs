@@ -1214,9 +1214,14 @@ impl Controller {
     /// 1; with this, no ego of seeds 0-7 does). At an acceleration lane's end, and a lane
     /// drop's, only where [`Self::stop_brakes_sumos_follower_hard`]: there a gentler stop
     /// everywhere had the egos enter slower, closer to the target-lane car behind (on the zoo's
-    /// `lanedrop-v25-l2`, ego only, 2-12% of the egos in an SSM conflict instead of 0-1%).
+    /// `lanedrop-v25-l2`, ego only, 2-12% of the egos in an SSM conflict instead of 0-1%). Nor
+    /// where the ramp's link crosses other lanes ([`LanePositions::crossing`]): slowed early by
+    /// every car that came near the junction, egos needed ever longer to clear the lanes they
+    /// cross and queued (SMARTS's `merge/3lane` form, every vehicle playing: 31 of 47 egos
+    /// through in 600 s, 57 of 58 with the stop at `g`).
     fn stops_at_b_safe(&self, cars: &[Car], j: usize) -> bool {
-        let stop_line = self.is_junction() && !self.positions.is_lane_drop();
+        let p = &self.positions;
+        let stop_line = self.is_junction() && !p.is_lane_drop() && p.crossing().is_empty();
         (stop_line && cars[j].on_ramp) || self.stop_brakes_sumos_follower_hard(cars, j)
     }
 
