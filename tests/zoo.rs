@@ -494,6 +494,27 @@ fn a_corridor_with_three_on_ramps_runs_from_one_merge_toml_and_reports_each_merg
     }
 }
 
+/// A zoo network `net build ARGS --ramp-flow 400 --duration 600` in `root`/net with the
+/// penetration study's routes for `seeds` (demand 1.2, 30% of the ramp's and the freeway's
+/// vehicles controllable: `routes/merge_d1.20_m0.30_s<seed>.rou.xml`); the network's folder.
+fn study_routes(root: &Outside, args: &str, seeds: &str) -> PathBuf {
+    let dir = root.0.join("net");
+    build(&dir, &format!("{args} --ramp-flow 400 --duration 600"));
+    let out = mpgdrive_in(&dir, &root.0.join("cache"))
+        .args(["routes", "--base", "merge.rou.xml", "--scales", "1.2"])
+        .args([
+            "--controllable-share",
+            "0.3",
+            "--mainline-controllable-share",
+            "0.3",
+        ])
+        .args(["--seeds", seeds, "--duration", "600", "--out", "routes"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    dir
+}
+
 #[test]
 fn an_ego_held_at_the_lanes_end_brakes_no_harder_than_sumos_driver_behind_it_can_follow() {
     // The zoo's acc60-v30 (a 60 m acceleration lane on a 30 m/s road), 30% of the ramp's and
@@ -501,33 +522,11 @@ fn an_ego_held_at_the_lanes_end_brakes_no_harder_than_sumos_driver_behind_it_can
     // the lane's end braked from 22.9 m/s to a stop at up to 9.6 m/s^2 (t = 473.5 s), and
     // SUMO's driver behind it came within a TTC of 1.35 s, a severe conflict.
     let root = Outside::new("soft-stop");
-    let dir = root.0.join("net");
-    build(
-        &dir,
-        "--form acceleration --accel-lane 60 --speed 30 --lane-flow 900 --ramp-flow 400 --duration 600",
-    );
-    let routes = [
-        "routes",
-        "--base",
-        "merge.rou.xml",
-        "--scales",
-        "1.2",
-        "--controllable-share",
-        "0.3",
-        "--mainline-controllable-share",
-        "0.3",
-        "--seeds",
+    let dir = study_routes(
+        &root,
+        "--form acceleration --accel-lane 60 --speed 30 --lane-flow 900",
         "2",
-        "--duration",
-        "600",
-        "--out",
-        "routes",
-    ];
-    let out = mpgdrive_in(&dir, &root.0.join("cache"))
-        .args(routes)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    );
     let args = [
         "--route-files",
         "routes/merge_d1.20_m0.30_s2.rou.xml",
@@ -561,32 +560,12 @@ fn egos_held_at_a_junction_stop_line_slow_early_enough_to_stay_out_of_severe_con
     // 1.17 s (SUMO seed 1) and 1.02 s (seed 3). Planned at b_safe, as at a stop sign, its stop
     // keeps every ego out of the study's severe conflicts (TTC < 1.5 s).
     let root = Outside::new("junction-stop-line");
-    let dir = root.0.join("net");
-    build(
-        &dir,
-        "--form junction --speed 30 --lane-flow 600 --curved --ramp-flow 400 --duration 600",
+    let dir = study_routes(
+        &root,
+        "--form junction --speed 30 --lane-flow 600 --curved",
+        "1,3",
     );
     let cache = root.0.join("cache");
-    let out = mpgdrive_in(&dir, &cache)
-        .args([
-            "routes",
-            "--base",
-            "merge.rou.xml",
-            "--merge",
-            "merge.toml",
-            "--scales",
-            "1.2",
-        ])
-        .args([
-            "--controllable-share",
-            "0.3",
-            "--mainline-controllable-share",
-            "0.3",
-        ])
-        .args(["--seeds", "1,3", "--duration", "600", "--out", "routes"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     for seed in ["1", "3"] {
         let route = format!("routes/merge_d1.20_m0.30_s{seed}.rou.xml");
         let args = ["--route-files", &route, "--controllers", "mpg", "--seed", seed];
