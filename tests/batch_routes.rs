@@ -598,6 +598,23 @@ fn flows_with_a_route_in_them_poisson_periods_and_sumos_default_interval_are_gen
     assert!(err.to_string().contains("period=\"exp(fast)\""), "{err}");
 }
 
+/// The top-level elements of route file `path` as written, split in two: those whose tag
+/// `first` picks, and the rest.
+fn split_elements(path: &Path, first: impl Fn(&str) -> bool) -> (String, String) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let doc = roxmltree::Document::parse(&text).unwrap();
+    let (mut picked, mut rest) = (String::new(), String::new());
+    for node in doc.root_element().children().filter(|n| n.is_element()) {
+        let part = if first(node.tag_name().name()) {
+            &mut picked
+        } else {
+            &mut rest
+        };
+        *part += &text[node.range()];
+    }
+    (picked, rest)
+}
+
 #[test]
 fn route_files_that_split_types_and_flows_are_one_demand() {
     // The bundled I-80 routes split in two, as configurations with a types file and a flows file
@@ -605,17 +622,7 @@ fn route_files_that_split_types_and_flows_are_one_demand() {
     // file they came from.
     let (base, geometry) = i80();
     let out = out_dir("split");
-    let text = std::fs::read_to_string(&base).unwrap();
-    let doc = roxmltree::Document::parse(&text).unwrap();
-    let (mut types, mut rest) = (String::new(), String::new());
-    for node in doc.root_element().children().filter(|n| n.is_element()) {
-        let part = if node.tag_name().name().starts_with("vType") {
-            &mut types
-        } else {
-            &mut rest
-        };
-        *part += &text[node.range()];
-    }
+    let (types, rest) = split_elements(&base, |tag| tag.starts_with("vType"));
     std::fs::create_dir_all(&out).unwrap();
     let (a, b) = (out.join("types.rou.xml"), out.join("flows.rou.xml"));
     std::fs::write(&a, format!("<routes>{types}</routes>")).unwrap();
@@ -694,18 +701,7 @@ fn types_and_routes_of_the_additional_files_count_and_are_not_written_again() {
     // generated file defines no type or route SUMO already loads (it refuses one defined twice).
     let (base, geometry) = i80();
     let out = out_dir("additional");
-    let text = std::fs::read_to_string(&base).unwrap();
-    let doc = roxmltree::Document::parse(&text).unwrap();
-    let (mut defs, mut flows) = (String::new(), String::new());
-    for node in doc.root_element().children().filter(|n| n.is_element()) {
-        let tag = node.tag_name().name();
-        let part = if tag.starts_with("vType") || tag.starts_with("route") {
-            &mut defs
-        } else {
-            &mut flows
-        };
-        *part += &text[node.range()];
-    }
+    let (defs, flows) = split_elements(&base, |tag| tag.starts_with("vType") || tag.starts_with("route"));
     assert!(!defs.is_empty() && !flows.is_empty());
     std::fs::create_dir_all(&out).unwrap();
     let (add, only_flows) = (out.join("types.add.xml"), out.join("flows.rou.xml"));
