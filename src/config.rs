@@ -410,6 +410,11 @@ pub struct TrainConfig {
     /// from the set's own random streams); 0 when absent.
     #[serde(default)]
     pub scenario_share: f64,
+    /// Share of the probe set (the curves' and the initialisation screening's states) drawn
+    /// from the same descriptions; `scenario_share` when absent. The probe can then judge a
+    /// policy on the scenario families without training on them.
+    #[serde(default)]
+    pub probe_scenario_share: Option<f64>,
     /// The training rewards' `epsilon` starts here and decays geometrically to
     /// `reward.epsilon` over the first `train.continuation.epochs` epochs (none when absent).
     #[serde(default)]
@@ -749,6 +754,14 @@ impl Config {
             t.scenario_share == 0.0 || s.kind != ScenarioKind::Traffic,
             "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
         )?;
+        if let Some(share) = t.probe_scenario_share {
+            within("train.probe_scenario_share", share, 0.0, 1.0)?;
+            check(
+                "train.probe_scenario_share",
+                share == 0.0 || s.kind != ScenarioKind::Traffic,
+                "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
+            )?;
+        }
         if let Some(c) = &t.continuation {
             finite("train.continuation.epsilon_start", c.epsilon_start)?;
             check(

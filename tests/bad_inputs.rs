@@ -249,6 +249,16 @@ fn cases() -> Vec<Case> {
             "train.scenario_share",
         ),
         train(
+            "a probe scenario share above 1",
+            smoke().replace("[train]\n", "[train]\nprobe_scenario_share = 1.5\n"),
+            "train.probe_scenario_share",
+        ),
+        train(
+            "a NaN probe scenario share",
+            smoke().replace("[train]\n", "[train]\nprobe_scenario_share = nan\n"),
+            "train.probe_scenario_share",
+        ),
+        train(
             "scenario and near-merge shares above 1 together",
             smoke().replace("[train]\n", "[train]\nscenario_share = 0.8\n")
                 + "\n[train.near_merge]\nshare = 0.25\nego_position = [150.0, 178.0]\nego_speed = [0.0, 8.0]\n",

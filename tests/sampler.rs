@@ -173,3 +173,24 @@ fn a_scenario_share_draws_the_states_before_the_near_merge_ones_from_the_papers_
     assert_eq!(probe[4], family_scene(&config, 9, 4));
     assert_eq!(probe[5], family_scene(&config, 9, 5));
 }
+
+#[test]
+fn a_probe_scenario_share_draws_the_probe_alone_from_the_papers_scenarios() {
+    let mut config = paper();
+    config.train.batch = 8;
+    config.train.probe_scenarios = 8;
+    config.train.near_merge = None;
+    config.train.scenario_share = 0.0;
+    // round(0.25 * 8) = 2: the probe's last two states, indices 6 and 7.
+    config.train.probe_scenario_share = Some(0.25);
+    let probe = sample_probe_scenes(&config, 4);
+    assert_eq!(probe[..6], sample_scenes(&config, 4, 0, 6)[..]);
+    assert_eq!(probe[6], Preset::One.draw_state(&mut scenario_rng(4, 6)).scene(&config));
+    assert_eq!(probe[7], Preset::Two.draw_state(&mut scenario_rng(4, 7)).scene(&config));
+    // The minibatches stay the stratified draws.
+    assert_eq!(sample_training_scenes(&config, 4, 2), sample_scenes(&config, 4, 16, 8));
+    // It overrides the minibatches' share in the probe set, 0 included.
+    config.train.scenario_share = 0.5;
+    config.train.probe_scenario_share = Some(0.0);
+    assert_eq!(sample_probe_scenes(&config, 4), sample_scenes(&config, 4, 0, 8));
+}

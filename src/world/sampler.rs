@@ -101,11 +101,12 @@ pub fn sample_training_scenes(config: &Config, seed: u64, epoch: usize) -> Vec<S
 }
 
 /// The probe set of `seed`: its first `train.probe_scenarios` scenarios, the last
-/// `round(train.scenario_share * count)` of them drawn from the paper's specific scenarios'
-/// descriptions ([`family_scene`]).
+/// `round(train.probe_scenario_share * count)` of them (`train.scenario_share` when it is
+/// not set) drawn from the paper's specific scenarios' descriptions ([`family_scene`]).
 pub fn sample_probe_scenes(config: &Config, seed: u64) -> Vec<Scene> {
-    let count = config.train.probe_scenarios;
-    let n_family = share_count(config.train.scenario_share, count);
+    let t = &config.train;
+    let count = t.probe_scenarios;
+    let n_family = share_count(t.probe_scenario_share.unwrap_or(t.scenario_share), count);
     (0..count)
         .map(|k| {
             if k >= count - n_family {
