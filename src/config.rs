@@ -415,6 +415,10 @@ pub struct TrainConfig {
     /// policy on the scenario families without training on them.
     #[serde(default)]
     pub probe_scenario_share: Option<f64>,
+    /// The first epoch whose minibatches hold `scenario_share` (0: every epoch; the
+    /// initialisation screening's epochs count as epochs from 0).
+    #[serde(default)]
+    pub scenario_from: usize,
     /// The training rewards' `epsilon` starts here and decays geometrically to
     /// `reward.epsilon` over the first `train.continuation.epochs` epochs (none when absent).
     #[serde(default)]
@@ -753,6 +757,11 @@ impl Config {
             "train.scenario_share",
             t.scenario_share == 0.0 || s.kind != ScenarioKind::Traffic,
             "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
+        )?;
+        check(
+            "train.scenario_from",
+            t.scenario_from < t.epochs,
+            format!("{} must be below train.epochs ({})", t.scenario_from, t.epochs),
         )?;
         if let Some(share) = t.probe_scenario_share {
             within("train.probe_scenario_share", share, 0.0, 1.0)?;

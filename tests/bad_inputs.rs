@@ -254,6 +254,11 @@ fn cases() -> Vec<Case> {
             "train.probe_scenario_share",
         ),
         train(
+            "scenario states from an epoch training never reaches",
+            smoke().replace("[train]\n", "[train]\nscenario_from = 100000\n"),
+            "train.scenario_from",
+        ),
+        train(
             "a NaN probe scenario share",
             smoke().replace("[train]\n", "[train]\nprobe_scenario_share = nan\n"),
             "train.probe_scenario_share",

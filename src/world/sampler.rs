@@ -82,13 +82,17 @@ pub fn sample_scenes(config: &Config, seed: u64, first: usize, count: usize) -> 
 /// set: the ego's position and speed stratified in `near_merge`'s ranges instead of
 /// `sampling`'s (the same two draws), the players placed around it by the usual rules. The
 /// `round(train.scenario_share * batch)` states before those are drawn from the paper's
-/// specific scenarios' descriptions ([`family_scene`]).
+/// specific scenarios' descriptions ([`family_scene`]) from epoch `train.scenario_from` on.
 pub fn sample_training_scenes(config: &Config, seed: u64, epoch: usize) -> Vec<Scene> {
     let batch = config.train.batch;
     let first = epoch * batch;
     let near = config.train.near_merge.as_ref();
     let n_near = share_count(near.map_or(0.0, |n| n.share), batch);
-    let n_family = share_count(config.train.scenario_share, batch - n_near);
+    let share = match epoch >= config.train.scenario_from {
+        true => config.train.scenario_share,
+        false => 0.0,
+    };
+    let n_family = share_count(share, batch - n_near);
     (first..first + batch)
         .map(|k| match near {
             Some(near) if k >= first + batch - n_near => {
