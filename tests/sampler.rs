@@ -185,19 +185,37 @@ fn the_probe_and_the_later_epochs_can_hold_the_papers_scenarios_on_their_own() {
     config.train.probe_scenario_share = Some(0.25);
     let probe = sample_probe_scenes(&config, 4);
     assert_eq!(probe[..6], sample_scenes(&config, 4, 0, 6)[..]);
-    assert_eq!(probe[6], Preset::One.draw_state(&mut scenario_rng(4, 6)).scene(&config));
-    assert_eq!(probe[7], Preset::Two.draw_state(&mut scenario_rng(4, 7)).scene(&config));
+    assert_eq!(
+        probe[6],
+        Preset::One.draw_state(&mut scenario_rng(4, 6)).scene(&config)
+    );
+    assert_eq!(
+        probe[7],
+        Preset::Two.draw_state(&mut scenario_rng(4, 7)).scene(&config)
+    );
     // The minibatches stay the stratified draws.
-    assert_eq!(sample_training_scenes(&config, 4, 2), sample_scenes(&config, 4, 16, 8));
+    assert_eq!(
+        sample_training_scenes(&config, 4, 2),
+        sample_scenes(&config, 4, 16, 8)
+    );
     // From epoch `scenario_from` on, the minibatches hold the scenario share: the last
     // round(0.25 * 8) = 2 states of epoch 3 (indices 30 and 31), none of epoch 2.
     config.train.scenario_share = 0.25;
     config.train.scenario_from = 3;
-    assert_eq!(sample_training_scenes(&config, 4, 2), sample_scenes(&config, 4, 16, 8));
+    assert_eq!(
+        sample_training_scenes(&config, 4, 2),
+        sample_scenes(&config, 4, 16, 8)
+    );
     let third = sample_training_scenes(&config, 4, 3);
     assert_eq!(third[..6], sample_scenes(&config, 4, 24, 6)[..]);
-    assert_eq!(third[6], Preset::One.draw_state(&mut scenario_rng(4, 30)).scene(&config));
-    assert_eq!(third[7], Preset::Two.draw_state(&mut scenario_rng(4, 31)).scene(&config));
+    assert_eq!(
+        third[6],
+        Preset::One.draw_state(&mut scenario_rng(4, 30)).scene(&config)
+    );
+    assert_eq!(
+        third[7],
+        Preset::Two.draw_state(&mut scenario_rng(4, 31)).scene(&config)
+    );
     // The probe share overrides the minibatches' share in the probe set, 0 included.
     config.train.scenario_share = 0.5;
     config.train.probe_scenario_share = Some(0.0);
