@@ -753,24 +753,27 @@ impl Config {
                 t.scenario_share
             ),
         )?;
-        check(
-            "train.scenario_share",
-            t.scenario_share == 0.0 || s.kind != ScenarioKind::Traffic,
-            "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
-        )?;
+        if let Some(share) = t.probe_scenario_share {
+            within("train.probe_scenario_share", share, 0.0, 1.0)?;
+        }
+        for (key, share) in [
+            ("train.scenario_share", t.scenario_share),
+            (
+                "train.probe_scenario_share",
+                t.probe_scenario_share.unwrap_or(0.0),
+            ),
+        ] {
+            check(
+                key,
+                share == 0.0 || s.kind != ScenarioKind::Traffic,
+                "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
+            )?;
+        }
         check(
             "train.scenario_from",
             t.scenario_from < t.epochs,
             format!("{} must be below train.epochs ({})", t.scenario_from, t.epochs),
         )?;
-        if let Some(share) = t.probe_scenario_share {
-            within("train.probe_scenario_share", share, 0.0, 1.0)?;
-            check(
-                "train.probe_scenario_share",
-                share == 0.0 || s.kind != ScenarioKind::Traffic,
-                "applies to the paper's scenario only (scenario.kind = \"paper\")".into(),
-            )?;
-        }
         if let Some(c) = &t.continuation {
             finite("train.continuation.epsilon_start", c.epsilon_start)?;
             check(

@@ -174,6 +174,11 @@ fn a_scenario_share_draws_the_states_before_the_near_merge_ones_from_the_papers_
     assert_eq!(probe[5], family_scene(&config, 9, 5));
 }
 
+/// State `index` of seed 4 drawn from `preset`'s description with the index's own stream.
+fn drawn(config: &mpgdrive::config::Config, preset: Preset, index: u64) -> mpgdrive::world::state::Scene {
+    preset.draw_state(&mut scenario_rng(4, index)).scene(config)
+}
+
 #[test]
 fn the_probe_and_the_later_epochs_can_hold_the_papers_scenarios_on_their_own() {
     let mut config = paper();
@@ -185,14 +190,8 @@ fn the_probe_and_the_later_epochs_can_hold_the_papers_scenarios_on_their_own() {
     config.train.probe_scenario_share = Some(0.25);
     let probe = sample_probe_scenes(&config, 4);
     assert_eq!(probe[..6], sample_scenes(&config, 4, 0, 6)[..]);
-    assert_eq!(
-        probe[6],
-        Preset::One.draw_state(&mut scenario_rng(4, 6)).scene(&config)
-    );
-    assert_eq!(
-        probe[7],
-        Preset::Two.draw_state(&mut scenario_rng(4, 7)).scene(&config)
-    );
+    assert_eq!(probe[6], drawn(&config, Preset::One, 6));
+    assert_eq!(probe[7], drawn(&config, Preset::Two, 7));
     // The minibatches stay the stratified draws.
     assert_eq!(
         sample_training_scenes(&config, 4, 2),
@@ -208,14 +207,8 @@ fn the_probe_and_the_later_epochs_can_hold_the_papers_scenarios_on_their_own() {
     );
     let third = sample_training_scenes(&config, 4, 3);
     assert_eq!(third[..6], sample_scenes(&config, 4, 24, 6)[..]);
-    assert_eq!(
-        third[6],
-        Preset::One.draw_state(&mut scenario_rng(4, 30)).scene(&config)
-    );
-    assert_eq!(
-        third[7],
-        Preset::Two.draw_state(&mut scenario_rng(4, 31)).scene(&config)
-    );
+    assert_eq!(third[6], drawn(&config, Preset::One, 30));
+    assert_eq!(third[7], drawn(&config, Preset::Two, 31));
     // The probe share overrides the minibatches' share in the probe set, 0 included.
     config.train.scenario_share = 0.5;
     config.train.probe_scenario_share = Some(0.0);

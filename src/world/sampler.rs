@@ -88,9 +88,10 @@ pub fn sample_training_scenes(config: &Config, seed: u64, epoch: usize) -> Vec<S
     let first = epoch * batch;
     let near = config.train.near_merge.as_ref();
     let n_near = share_count(near.map_or(0.0, |n| n.share), batch);
-    let share = match epoch >= config.train.scenario_from {
-        true => config.train.scenario_share,
-        false => 0.0,
+    let share = if epoch >= config.train.scenario_from {
+        config.train.scenario_share
+    } else {
+        0.0
     };
     let n_family = share_count(share, batch - n_near);
     (first..first + batch)
