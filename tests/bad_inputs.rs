@@ -24,6 +24,11 @@ fn smoke() -> String {
     read("configs/smoke.toml")
 }
 
+/// The smoke configuration with `line` added at the top of its `[train]` table.
+fn smoke_train(line: &str) -> String {
+    smoke().replace("[train]\n", &format!("[train]\n{line}\n"))
+}
+
 /// The smoke configuration with one line's value replaced (the line starting with `key =`).
 fn smoke_with(key: &str, value: &str) -> String {
     let text = smoke();
@@ -245,27 +250,27 @@ fn cases() -> Vec<Case> {
         ),
         train(
             "a NaN scenario share",
-            smoke().replace("[train]\n", "[train]\nscenario_share = nan\n"),
+            smoke_train("scenario_share = nan"),
             "train.scenario_share",
         ),
         train(
             "a probe scenario share above 1",
-            smoke().replace("[train]\n", "[train]\nprobe_scenario_share = 1.5\n"),
+            smoke_train("probe_scenario_share = 1.5"),
             "train.probe_scenario_share",
         ),
         train(
             "scenario states from an epoch training never reaches",
-            smoke().replace("[train]\n", "[train]\nscenario_from = 100000\n"),
+            smoke_train("scenario_from = 100000"),
             "train.scenario_from",
         ),
         train(
             "a NaN probe scenario share",
-            smoke().replace("[train]\n", "[train]\nprobe_scenario_share = nan\n"),
+            smoke_train("probe_scenario_share = nan"),
             "train.probe_scenario_share",
         ),
         train(
             "scenario and near-merge shares above 1 together",
-            smoke().replace("[train]\n", "[train]\nscenario_share = 0.8\n")
+            smoke_train("scenario_share = 0.8")
                 + "\n[train.near_merge]\nshare = 0.25\nego_position = [150.0, 178.0]\nego_speed = [0.0, 8.0]\n",
             "train.scenario_share",
         ),
