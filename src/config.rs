@@ -386,6 +386,11 @@ pub struct TrainConfig {
     pub learning_rate: f64,
     /// Adam step size at the last epoch; it decays exponentially in between.
     pub learning_rate_final: f64,
+    /// Epochs (from 0, ascending) at which the step size warms up again: each starts a new
+    /// decay from `learning_rate` to `learning_rate_final` by the epoch before the next one
+    /// (or the last), and Adam's moments restart with it (none when absent).
+    #[serde(default)]
+    pub learning_rate_restarts: Vec<usize>,
     /// Largest gradient norm (clipped above).
     pub grad_clip: f64,
     /// Fixed probe initial states for the curves (disjoint from training).
@@ -735,6 +740,17 @@ impl Config {
         positive("train.learning_rate", t.learning_rate)?;
         positive("train.learning_rate_final", t.learning_rate_final)?;
         positive("train.grad_clip", t.grad_clip)?;
+        check(
+            "train.learning_rate_restarts",
+            t.learning_rate_restarts.windows(2).all(|w| w[0] < w[1])
+                && t.learning_rate_restarts
+                    .iter()
+                    .all(|&r| (1..t.epochs).contains(&r)),
+            format!(
+                "{:?} must be ascending epochs in [1, train.epochs) ({})",
+                t.learning_rate_restarts, t.epochs
+            ),
+        )?;
         check(
             "train.screen_epochs",
             self.train.init_candidates == 1 || (1..=self.train.epochs).contains(&self.train.screen_epochs),

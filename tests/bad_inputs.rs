@@ -264,6 +264,16 @@ fn cases() -> Vec<Case> {
             "train.scenario_from",
         ),
         train(
+            "a step-size restart at the run's last epoch",
+            smoke_train("learning_rate_restarts = [15]"),
+            "train.learning_rate_restarts",
+        ),
+        train(
+            "step-size restarts out of order",
+            smoke_train("learning_rate_restarts = [8, 4]"),
+            "train.learning_rate_restarts",
+        ),
+        train(
             "a NaN probe scenario share",
             smoke_train("probe_scenario_share = nan"),
             "train.probe_scenario_share",

@@ -349,6 +349,64 @@ fn learning_rate_decays_exponentially_to_its_final_value() {
 }
 
 #[test]
+fn a_step_size_restart_starts_a_new_cycle_that_resumes_bit_for_bit() {
+    // Two cycles, epochs 0-7 and 8-14, each decaying from 0.01 to 0.001.
+    let mut config = smoke();
+    config.train.learning_rate_restarts = vec![8];
+    let lr = |e| mpgdrive::train::learning_rate(&config.train, e);
+    approx::assert_relative_eq!(lr(7), 1e-3, max_relative = 1e-12);
+    approx::assert_relative_eq!(lr(8), 1e-2);
+    approx::assert_relative_eq!(lr(11), 1e-2 * 0.1f64.sqrt(), max_relative = 1e-12);
+    approx::assert_relative_eq!(lr(14), 1e-3, max_relative = 1e-12);
+    let key = |r: &[curves::EpochRecord]| {
+        r.iter()
+            .map(|x| (x.epoch, x.train_objective, x.probe_objective))
+            .collect::<Vec<_>>()
+    };
+    let bytes = |d: &std::path::Path| std::fs::read(d.join("seed3.safetensors")).unwrap();
+    // The first cycle is a run of 8 epochs.
+    let mut short = smoke();
+    short.train.epochs = 8;
+    let first = train(
+        &short,
+        &run(Mode::Mpg, &out_dir("cycle-first")),
+        &NO_STOP,
+        &mut |_| {},
+    )
+    .unwrap();
+    let whole_dir = out_dir("cycle-whole");
+    let whole = train(&config, &run(Mode::Mpg, &whole_dir), &NO_STOP, &mut |_| {}).unwrap();
+    assert_eq!(key(&whole[..8]), key(&first));
+    // The second cycle changes the run (a warm step size and fresh moments).
+    let plain_dir = out_dir("cycle-none");
+    train(&smoke(), &run(Mode::Mpg, &plain_dir), &NO_STOP, &mut |_| {}).unwrap();
+    assert!(
+        bytes(&whole_dir) != bytes(&plain_dir),
+        "the restart changes the weights"
+    );
+    // Stopped one epoch into the second cycle (Adam's state holds that one step), then
+    // resumed: the uninterrupted run's weights, bit for bit.
+    let dir = out_dir("cycle-stop");
+    let stop = AtomicBool::new(false);
+    let err = train(&config, &run(Mode::Mpg, &dir), &stop, &mut |r| {
+        if r.epoch == 9 {
+            stop.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    })
+    .unwrap_err();
+    assert!(
+        matches!(err, mpgdrive::train::TrainError::Interrupted { epoch: 9, .. }),
+        "{err}"
+    );
+    let resume = TrainRun {
+        resume: true,
+        ..run(Mode::Mpg, &dir)
+    };
+    train(&config, &resume, &NO_STOP, &mut |_| {}).unwrap();
+    assert!(bytes(&dir) == bytes(&whole_dir), "resumed across the restart");
+}
+
+#[test]
 fn the_continuation_decays_epsilon_geometrically_to_the_rewards() {
     let mut config = smoke();
     config.reward.epsilon = 0.02;

@@ -209,15 +209,34 @@ fn sidecar(
     }
 }
 
+/// The epochs of the step-size cycle holding `epoch` (from 0): from the last of
+/// `train.learning_rate_restarts` at or before it (else 0) up to the next one (else
+/// `train.epochs`), exclusive.
+pub fn learning_rate_cycle(t: &crate::config::TrainConfig, epoch: usize) -> std::ops::Range<usize> {
+    let restarts = &t.learning_rate_restarts;
+    let next = restarts.partition_point(|&r| r <= epoch);
+    let start = if next == 0 { 0 } else { restarts[next - 1] };
+    start..restarts.get(next).copied().unwrap_or(t.epochs)
+}
+
 /// Step size of `epoch` (from 0): exponential decay from `learning_rate` to
-/// `learning_rate_final` at the last epoch.
+/// `learning_rate_final` over its cycle ([`learning_rate_cycle`]; without restarts, the
+/// whole run).
 pub fn learning_rate(t: &crate::config::TrainConfig, epoch: usize) -> f64 {
-    let progress = if t.epochs > 1 {
-        epoch as f64 / (t.epochs - 1) as f64
+    let cycle = learning_rate_cycle(t, epoch);
+    let progress = if cycle.len() > 1 {
+        (epoch - cycle.start) as f64 / (cycle.len() - 1) as f64
     } else {
         0.0
     };
     t.learning_rate * (t.learning_rate_final / t.learning_rate).powf(progress)
+}
+
+/// Adam's steps after `epochs` epochs: those since the last step-size restart.
+fn adam_steps_after(t: &crate::config::TrainConfig, epochs: usize) -> usize {
+    epochs
+        .checked_sub(1)
+        .map_or(0, |last| epochs - learning_rate_cycle(t, last).start)
 }
 
 /// The reward's `epsilon` in training epoch `epoch`: `reward.epsilon`, or during
@@ -282,6 +301,9 @@ impl Stack {
         epoch: usize,
     ) -> Result<Vec<f64>, TrainError> {
         let t = &config.train;
+        if t.learning_rate_restarts.contains(&epoch) {
+            self.adam = Adam::new(&self.net.param_lengths());
+        }
         let scenes: Vec<Scene> = self
             .seeds
             .iter()
@@ -627,10 +649,11 @@ fn start_of(config: &Config, run: &TrainRun) -> Result<Start, TrainError> {
         let path = checkpoint::moments_path(&ckpt);
         let moments = if path.exists() {
             let lengths = StackedNet::from_nets(std::slice::from_ref(&net)).param_lengths();
-            let state = Adam::load(&path, &lengths).and_then(|m| match m.steps == side.epochs as u64 {
+            let steps = adam_steps_after(t, side.epochs) as u64;
+            let state = Adam::load(&path, &lengths).and_then(|m| match m.steps == steps {
                 true => Ok(m),
                 false => Err(format!(
-                    "saved after epoch {}, the checkpoint after {}",
+                    "it holds {} steps; the checkpoint after epoch {} asks for {steps}",
                     m.steps, side.epochs
                 )),
             });
